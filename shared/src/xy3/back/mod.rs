@@ -1,0 +1,1 @@
+//! Placeholder: filled by the backchannel work (issue 3).

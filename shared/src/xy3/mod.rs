@@ -1,0 +1,2 @@
+//! Placeholder: filled by the codec work (issue 3).
+pub mod back;
