@@ -411,7 +411,7 @@ mod tests {
         (0x0000,   16, 20, 0x0_0000),   // zero widens to zero
         (0x8000,   16, 20, 0x8_0000),   // centre stays centre
         (0xFFFF,   16, 20, 0xF_FFF0),   // full scale widens exactly (low bits zero)
-        (0xFFFF,   16, 26, 0x3FF_FFC0),
+        (0xFFFF,   16, 26, 0x3FF_FC00),
         (0x0_0007, 20, 16, 0x0000),     // 7/16 LSB rounds down
         (0x0_0008, 20, 16, 0x0001),     // exactly half rounds up
         (0x8_0000, 20, 16, 0x8000),     // centre narrows exactly
