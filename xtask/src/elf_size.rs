@@ -60,7 +60,7 @@ pub fn read(elf: &Path) -> Result<Size, String> {
             None => regions.push((place.to_string(), section.size())),
         }
     }
-    regions.sort_by(|a, b| b.1.cmp(&a.1));
+    regions.sort_by_key(|r| std::cmp::Reverse(r.1));
     Ok(Size {
         flash,
         ram,

@@ -125,10 +125,8 @@ fn qemu(elf: &Path, extra: &[&str], name: &str) -> Result<Run> {
         .stdin(Stdio::null())
         .stdout(create(&out_path)?)
         .stderr(create(&err_path)?);
-    eprintln!(
-        "\n==> qemu-system-arm {}",
-        format!("{:?}", cmd.get_args().collect::<Vec<_>>())
-    );
+    let shown: Vec<_> = cmd.get_args().map(|a| a.to_string_lossy()).collect();
+    eprintln!("\n==> qemu-system-arm {}", shown.join(" "));
     let started = Instant::now();
     let mut child = cmd
         .spawn()
