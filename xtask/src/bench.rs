@@ -97,3 +97,38 @@ pub fn report(stdout: &str, stderr: &str) -> Result {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::report;
+
+    const OUT: &str = "BENCH (call overhead) 0\nBENCH a 10\nBENCH b 4\nBENCH done\n";
+
+    #[test]
+    fn within_budget_passes() {
+        let err = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 4816\n";
+        assert_eq!(report(OUT, err), Ok(()));
+    }
+
+    #[test]
+    fn over_budget_fails_naming_the_workload() {
+        // b: (4817 - 16) / 4 = 1200.25 per frame.
+        let err = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 4817\n";
+        let e = report(OUT, err).unwrap_err();
+        assert!(e.contains("`b`") && e.contains("1200.2"), "{e}");
+    }
+
+    #[test]
+    fn missing_count_or_unfinished_run_fails() {
+        let err = "insn_count: window 0 16\ninsn_count: window 1 116\n";
+        assert!(report(OUT, err).is_err());
+        let full = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 20\n";
+        assert!(report(&OUT.replace("BENCH done\n", ""), full).is_err());
+    }
+
+    #[test]
+    fn first_window_must_be_the_empty_one() {
+        let out = "BENCH a 10\nBENCH done\n";
+        assert!(report(out, "insn_count: window 0 16\n").is_err());
+    }
+}

@@ -103,3 +103,15 @@ pub fn run() -> Result {
     println!("fuzz: {} targets, {SECONDS} s each, no crash", names.len());
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::targets;
+
+    #[test]
+    fn finds_only_bin_names() {
+        let manifest = "[package]\nname = \"pkg\"\n\n[[bin]]\nname = \"one\"\npath = \"a.rs\"\n\n\
+                        [profile.release]\ndebug = 1\n\n[[bin]]\nname=\"two\"\n";
+        assert_eq!(targets(manifest), ["one", "two"]);
+    }
+}
