@@ -13,6 +13,7 @@
 //! probe-rs), so it cannot run under plain QEMU; a list of `fn()` is all we need.
 #![no_std]
 #![deny(missing_docs)]
+#![forbid(unsafe_code)]
 
 pub mod tests;
 pub mod workloads;

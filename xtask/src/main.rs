@@ -30,6 +30,8 @@ const HOST: &str = "x86_64-unknown-linux-gnu";
 pub(crate) const MCU: &str = "thumbv7em-none-eabihf";
 /// Host-side packages.
 const HOST_PACKAGES: &[&str] = &["xy-bridge-shared", "host-tests", "xtask"];
+/// Clippy's trailing arguments: every warning is an error.
+const DENY_WARNINGS: &[&str] = &["--", "-D", "warnings"];
 /// Flash budget for the firmware image (issue 6).
 const FLASH_BUDGET: u64 = 256 * 1024;
 
@@ -100,30 +102,13 @@ fn test_all() -> Result {
         vec!["clippy", "--target", HOST, "--all-targets"],
         HOST_PACKAGES,
     );
-    cargo(&[host_clippy.as_slice(), &["--", "-D", "warnings"]].concat())?;
-    cargo(&[
-        "clippy",
-        "--release",
-        "--target",
-        MCU,
-        "--bins",
-        "--",
-        "-D",
-        "warnings",
-    ])?;
-    cargo(&[
-        "clippy",
-        "--release",
-        "--target",
-        MCU,
-        "-p",
-        "xy-bridge-shared",
-        "--features",
-        "defmt",
-        "--",
-        "-D",
-        "warnings",
-    ])?;
+    cargo(&[host_clippy.as_slice(), DENY_WARNINGS].concat())?;
+    let mcu_clippy = ["clippy", "--release", "--target", MCU];
+    cargo(&[&mcu_clippy[..], &["--bins"], DENY_WARNINGS].concat())?;
+    let shared = ["-p", "xy-bridge-shared", "--features", "defmt"];
+    cargo(&[&mcu_clippy[..], &shared, DENY_WARNINGS].concat())?;
+    let cm7 = ["-p", "xy-bridge-cm7", "--lib", "--bins"];
+    cargo(&[&mcu_clippy[..], &cm7, DENY_WARNINGS].concat())?;
 
     let host_test = with_packages(vec!["test", "--release", "--target", HOST], HOST_PACKAGES);
     cargo(&host_test)?;
