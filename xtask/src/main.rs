@@ -8,22 +8,30 @@
 //! Steps, in order (each stops the run on failure):
 //! 1. `rustfmt` check of the whole workspace.
 //! 2. clippy `-D warnings` for the host crates (all targets) and for the MCU target
-//!    (firmware and `shared` with `defmt`).
+//!    (firmware, `shared` with `defmt`, and `cm7`).
 //! 3. All host tests (`shared` unit + property tests, `host-tests` integration tests).
 //! 4. The firmware release build, then its flash and RAM use.
+//! 5. `cm7` under QEMU (Cortex-M7): `shared`'s on-target tests, then the per-frame
+//!    instruction counts against the budget (`qemu.rs`, `bench.rs`).
+//! 6. A few seconds of every cargo-fuzz target (`fuzz.rs`).
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 use std::time::Instant;
 
+mod bench;
 mod elf_size;
+mod fuzz;
+mod qemu;
 
 /// The host target the host crates are built for (the workspace default is the MCU).
 const HOST: &str = "x86_64-unknown-linux-gnu";
 /// The MCU target.
-const MCU: &str = "thumbv7em-none-eabihf";
+pub(crate) const MCU: &str = "thumbv7em-none-eabihf";
 /// Host-side packages.
 const HOST_PACKAGES: &[&str] = &["xy-bridge-shared", "host-tests", "xtask"];
+/// Clippy's trailing arguments: every warning is an error.
+const DENY_WARNINGS: &[&str] = &["--", "-D", "warnings"];
 /// Flash budget for the firmware image (issue 6).
 const FLASH_BUDGET: u64 = 256 * 1024;
 
@@ -32,10 +40,14 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("test") => test_all(),
         Some("size") => firmware_size(),
+        Some("qemu") => qemu::run(),
+        Some("fuzz") => fuzz::run(),
         _ => {
-            eprintln!("usage: cargo xtask <test|size>");
-            eprintln!("  test  fmt, clippy (host + MCU), all tests, firmware build and size");
+            eprintln!("usage: cargo xtask <test|size|qemu|fuzz>");
+            eprintln!("  test  fmt, clippy (host + MCU), all tests, firmware size, QEMU, fuzz");
             eprintln!("  size  firmware release build and its flash/RAM use");
+            eprintln!("  qemu  on-target tests and instruction counts on an emulated Cortex-M7");
+            eprintln!("  fuzz  every cargo-fuzz target for a few seconds");
             return ExitCode::from(2);
         }
     };
@@ -86,25 +98,38 @@ fn test_all() -> Result {
     let started = Instant::now();
     cargo(&["fmt", "--all", "--", "--check"])?;
 
-    let host_clippy = with_packages(vec!["clippy", "--target", HOST, "--all-targets"], HOST_PACKAGES);
-    cargo(&[host_clippy.as_slice(), &["--", "-D", "warnings"]].concat())?;
-    cargo(&["clippy", "--release", "--target", MCU, "--bins", "--", "-D", "warnings"])?;
-    cargo(&[
-        "clippy", "--release", "--target", MCU, "-p", "xy-bridge-shared", "--features", "defmt",
-        "--", "-D", "warnings",
-    ])?;
+    let host_clippy = with_packages(
+        vec!["clippy", "--target", HOST, "--all-targets"],
+        HOST_PACKAGES,
+    );
+    cargo(&[host_clippy.as_slice(), DENY_WARNINGS].concat())?;
+    let mcu_clippy = ["clippy", "--release", "--target", MCU];
+    cargo(&[&mcu_clippy[..], &["--bins"], DENY_WARNINGS].concat())?;
+    let shared = ["-p", "xy-bridge-shared", "--features", "defmt"];
+    cargo(&[&mcu_clippy[..], &shared, DENY_WARNINGS].concat())?;
+    let cm7 = ["-p", "xy-bridge-cm7", "--lib", "--bins"];
+    cargo(&[&mcu_clippy[..], &cm7, DENY_WARNINGS].concat())?;
 
     let host_test = with_packages(vec!["test", "--release", "--target", HOST], HOST_PACKAGES);
     cargo(&host_test)?;
 
     firmware_size()?;
-    eprintln!("\nxtask: all checks passed in {:.0} s", started.elapsed().as_secs_f64());
+    qemu::run()?;
+    fuzz::run()?;
+    eprintln!(
+        "\nxtask: all checks passed in {:.0} s",
+        started.elapsed().as_secs_f64()
+    );
     Ok(())
 }
 
 fn firmware_size() -> Result {
     cargo(&["build", "--release", "--target", MCU, "--bin", "firmware"])?;
-    let elf = root().join("target").join(MCU).join("release").join("firmware");
+    let elf = root()
+        .join("target")
+        .join(MCU)
+        .join("release")
+        .join("firmware");
     let size = elf_size::read(&elf)?;
     println!(
         "firmware: flash {} bytes ({:.1} KiB of {} KiB budget), RAM {} bytes ({:.1} KiB) static",
@@ -118,7 +143,10 @@ fn firmware_size() -> Result {
         println!("  {name:<8} {bytes:>8} bytes");
     }
     if size.flash > FLASH_BUDGET {
-        return Err(format!("firmware flash use {} exceeds the {FLASH_BUDGET}-byte budget", size.flash));
+        return Err(format!(
+            "firmware flash use {} exceeds the {FLASH_BUDGET}-byte budget",
+            size.flash
+        ));
     }
     Ok(())
 }

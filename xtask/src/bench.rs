@@ -1,0 +1,134 @@
+//! The bench's result: pairs the guest's `BENCH <name> <frames>` lines (stdout) with
+//! the plugin's `insn_count: window <n> <count>` lines (stderr) in order, subtracts
+//! the empty first window (the cost of the window itself) and prints instructions per
+//! 10 us frame. Fails if the worst workload exceeds [`BUDGET`].
+
+use crate::Result;
+
+/// Instructions one frame may cost on the worst path. A 10 us frame at 480 MHz is
+/// 4800 cycles; keeping the per-frame protocol work at a quarter of that leaves the
+/// rest for interrupts, DMA bookkeeping and the other direction.
+pub const BUDGET: f64 = 1200.0;
+
+/// One measured window.
+struct Window<'a> {
+    name: &'a str,
+    frames: u32,
+    count: u64,
+}
+
+/// Parses, prints the table and checks the budget.
+pub fn report(stdout: &str, stderr: &str) -> Result {
+    let names: Vec<(&str, u32)> = stdout
+        .lines()
+        .filter_map(|l| l.strip_prefix("BENCH "))
+        .filter(|l| *l != "done")
+        .map(|l| {
+            let (name, frames) = l
+                .rsplit_once(' ')
+                .ok_or_else(|| format!("bad bench line `{l}`"))?;
+            Ok((
+                name,
+                frames
+                    .parse()
+                    .map_err(|e| format!("bad frame count in `{l}`: {e}"))?,
+            ))
+        })
+        .collect::<Result<_>>()?;
+    let counts: Vec<u64> = stderr
+        .lines()
+        .filter_map(|l| l.strip_prefix("insn_count: window "))
+        .map(|l| {
+            let count = l.split_whitespace().nth(1).unwrap_or("");
+            count
+                .parse()
+                .map_err(|e| format!("bad plugin line `{l}`: {e}"))
+        })
+        .collect::<Result<_>>()?;
+    if !stdout.lines().any(|l| l == "BENCH done") {
+        return Err("the bench did not finish".into());
+    }
+    if names.len() != counts.len() || names.is_empty() {
+        return Err(format!(
+            "{} bench windows announced but {} counted",
+            names.len(),
+            counts.len()
+        ));
+    }
+    let windows: Vec<Window> = names
+        .iter()
+        .zip(&counts)
+        .map(|(&(name, frames), &count)| Window {
+            name,
+            frames,
+            count,
+        })
+        .collect();
+    let overhead = match windows.first() {
+        Some(w) if w.frames == 0 => w.count,
+        _ => return Err("the first bench window must be the empty calibration window".into()),
+    };
+
+    println!("\ninstructions per 10 us frame (QEMU mps2-an500 Cortex-M7, window cost {overhead} subtracted):");
+    println!(
+        "  {:<48} {:>6} {:>8} {:>10}",
+        "workload", "frames", "insns", "per frame"
+    );
+    let mut worst: Option<(&str, f64)> = None;
+    for w in windows.iter().skip(1) {
+        let net = w.count.saturating_sub(overhead);
+        let per_frame = net as f64 / f64::from(w.frames.max(1));
+        println!(
+            "  {:<48} {:>6} {:>8} {:>10.1}",
+            w.name, w.frames, net, per_frame
+        );
+        if worst.is_none_or(|(_, p)| per_frame > p) {
+            worst = Some((w.name, per_frame));
+        }
+    }
+    let Some((name, per_frame)) = worst else {
+        return Err("the bench measured no workload".into());
+    };
+    println!("worst path: {name}: {per_frame:.1} instructions per frame (budget {BUDGET:.0})");
+    if per_frame > BUDGET {
+        return Err(format!(
+            "`{name}` needs {per_frame:.1} instructions per frame, over the {BUDGET:.0} budget"
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::report;
+
+    const OUT: &str = "BENCH (call overhead) 0\nBENCH a 10\nBENCH b 4\nBENCH done\n";
+
+    #[test]
+    fn within_budget_passes() {
+        let err = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 4816\n";
+        assert_eq!(report(OUT, err), Ok(()));
+    }
+
+    #[test]
+    fn over_budget_fails_naming_the_workload() {
+        // b: (4817 - 16) / 4 = 1200.25 per frame.
+        let err = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 4817\n";
+        let e = report(OUT, err).unwrap_err();
+        assert!(e.contains("`b`") && e.contains("1200.2"), "{e}");
+    }
+
+    #[test]
+    fn missing_count_or_unfinished_run_fails() {
+        let err = "insn_count: window 0 16\ninsn_count: window 1 116\n";
+        assert!(report(OUT, err).is_err());
+        let full = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 20\n";
+        assert!(report(&OUT.replace("BENCH done\n", ""), full).is_err());
+    }
+
+    #[test]
+    fn first_window_must_be_the_empty_one() {
+        let out = "BENCH a 10\nBENCH done\n";
+        assert!(report(out, "insn_count: window 0 16\n").is_err());
+    }
+}

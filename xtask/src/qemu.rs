@@ -1,0 +1,168 @@
+//! The `cm7` crate under QEMU: the on-target tests of `shared` and the instruction-count
+//! bench, both on an emulated Cortex-M7 (`mps2-an500`) with semihosting for output and
+//! exit status. See `cm7/README-cm7.md`.
+
+use crate::{cargo, root, Result, MCU};
+use std::fs;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// Longest a QEMU run may take (the whole suite takes well under a second today).
+const TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Builds `cm7` and the plugin, runs the tests and the bench, prints both results.
+pub fn run() -> Result {
+    cargo(&["build", "--release", "--target", MCU, "-p", "xy-bridge-cm7"])?;
+    let elves = root().join("target").join(MCU).join("release");
+    let plugin = build_plugin()?;
+
+    let tests = qemu(&elves.join("tests"), &[], "tests")?;
+    print!("{}", tests.stdout);
+    if !tests.ok {
+        return Err(format!(
+            "on-target tests failed (QEMU: {}){}",
+            tests.status,
+            tail(&tests.stderr)
+        ));
+    }
+    let summary = tests.stdout.lines().find(|l| l.starts_with("cm7 tests:"));
+    let Some(summary) = summary else {
+        return Err("on-target tests printed no summary line".into());
+    };
+    println!("on-target:{}", summary.trim_start_matches("cm7 tests:"));
+
+    let elf = elves.join("bench");
+    let (start, end) = markers(&elf)?;
+    let arg = format!("{},start={start:#x},end={end:#x}", plugin.display());
+    let bench = qemu(&elf, &["-d", "plugin", "-plugin", &arg], "bench")?;
+    if !bench.ok {
+        return Err(format!(
+            "bench failed (QEMU: {}){}",
+            bench.status,
+            tail(&bench.stderr)
+        ));
+    }
+    crate::bench::report(&bench.stdout, &bench.stderr)
+}
+
+/// `gcc -shared -fPIC` of `cm7/plugin/insn_count.c` into `target/cm7/`.
+fn build_plugin() -> Result<PathBuf> {
+    let out_dir = root().join("target").join("cm7");
+    fs::create_dir_all(&out_dir)
+        .map_err(|e| format!("cannot create {}: {e}", out_dir.display()))?;
+    let out = out_dir.join("insn_count.so");
+    let src = root().join("cm7").join("plugin").join("insn_count.c");
+    eprintln!(
+        "\n==> gcc -shared -fPIC {} -o {}",
+        src.display(),
+        out.display()
+    );
+    let status = Command::new("gcc")
+        .args([
+            "-shared",
+            "-fPIC",
+            "-O2",
+            "-Wall",
+            "-Wextra",
+            "-Werror",
+            "-fvisibility=hidden",
+        ])
+        .arg(&src)
+        .arg("-o")
+        .arg(&out)
+        .status()
+        .map_err(|e| format!("cannot start gcc (install it: .ci/run does): {e}"))?;
+    if status.success() {
+        Ok(out)
+    } else {
+        Err(format!("building the QEMU plugin failed: {status}"))
+    }
+}
+
+/// Entry addresses of `bench_start` and `bench_end` (Thumb bit cleared).
+fn markers(elf: &Path) -> Result<(u64, u64)> {
+    use object::{Object, ObjectSymbol};
+    let data = fs::read(elf).map_err(|e| format!("cannot read {}: {e}", elf.display()))?;
+    let file = object::File::parse(&*data).map_err(|e| format!("{}: {e}", elf.display()))?;
+    let find = |name: &str| {
+        file.symbols()
+            .find(|s| s.name() == Ok(name))
+            .map(|s| s.address() & !1)
+            .ok_or_else(|| format!("{}: no symbol `{name}`", elf.display()))
+    };
+    let (start, end) = (find("bench_start")?, find("bench_end")?);
+    if start == end {
+        return Err("bench_start and bench_end were merged into one address".into());
+    }
+    Ok((start, end))
+}
+
+/// What one QEMU run left behind.
+struct Run {
+    ok: bool,
+    status: String,
+    stdout: String,
+    stderr: String,
+}
+
+/// Runs `elf` on the emulated Cortex-M7 with a timeout; output goes through files so a
+/// chatty guest cannot fill a pipe and stall.
+fn qemu(elf: &Path, extra: &[&str], name: &str) -> Result<Run> {
+    let dir = root().join("target").join("cm7");
+    let (out_path, err_path) = (
+        dir.join(format!("{name}.stdout")),
+        dir.join(format!("{name}.stderr")),
+    );
+    let create =
+        |p: &Path| fs::File::create(p).map_err(|e| format!("cannot create {}: {e}", p.display()));
+    let mut cmd = Command::new("qemu-system-arm");
+    cmd.args(["-machine", "mps2-an500", "-cpu", "cortex-m7", "-nographic"])
+        .args(["-semihosting-config", "enable=on,target=native"])
+        .args(extra)
+        .arg("-kernel")
+        .arg(elf)
+        .stdin(Stdio::null())
+        .stdout(create(&out_path)?)
+        .stderr(create(&err_path)?);
+    let shown: Vec<_> = cmd.get_args().map(|a| a.to_string_lossy()).collect();
+    eprintln!("\n==> qemu-system-arm {}", shown.join(" "));
+    let started = Instant::now();
+    let mut child = cmd
+        .spawn()
+        .map_err(|e| format!("cannot start qemu-system-arm (install it: .ci/run does): {e}"))?;
+    let status = loop {
+        if let Some(status) = child.try_wait().map_err(|e| e.to_string())? {
+            break status;
+        }
+        if started.elapsed() > TIMEOUT {
+            let _ = child.kill();
+            let _ = child.wait();
+            return Err(format!(
+                "QEMU ({name}) timed out after {} s",
+                TIMEOUT.as_secs()
+            ));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    eprintln!("    ({:.1} s)", started.elapsed().as_secs_f64());
+    let read =
+        |p: &Path| fs::read_to_string(p).map_err(|e| format!("cannot read {}: {e}", p.display()));
+    Ok(Run {
+        ok: status.success(),
+        status: status.to_string(),
+        stdout: read(&out_path)?,
+        stderr: read(&err_path)?,
+    })
+}
+
+/// The last lines of QEMU's stderr, for an error message.
+fn tail(stderr: &str) -> String {
+    let lines: Vec<&str> = stderr.lines().collect();
+    let from = lines.len().saturating_sub(15);
+    if lines.is_empty() {
+        String::new()
+    } else {
+        format!("\n{}", lines[from..].join("\n"))
+    }
+}
