@@ -26,8 +26,9 @@
 //!   same scope as the 16-bit "even" so that one policy means one scope for every frame
 //!   type, and so the two policies differ, for every frame type, by exactly the header's
 //!   ones (a head using the other convention is served by switching the policy).
-//!   Beware: odd over the whole 18-bit frame is *not* the same as even over it, so a
-//!   head that applies 16-bit rules to 18-bit frames needs [`Parity::DataOnly`].
+//!   Beware: since the 18-bit header is a single one, our 18-bit DataOnly (odd over
+//!   bits 18..0) equals *even* parity over all 20 bits, so a head that simply applies
+//!   the 16-bit whole-frame rule to 18-bit frames needs [`Parity::DataOnly`].
 //! - [`Parity::DataOnly`]: the parity bit covers the data bits only (bits 16..1 for
 //!   16-bit positions and commands, even; bits 18..1 for 18-bit positions, odd).
 //!   Because `001` and `111` hold an odd number of ones and the 18-bit header one, this
@@ -37,12 +38,17 @@
 //!
 //! # Error detection
 //! Under [`Parity::WholeFrame`] and [`Parity::DataOnly`] every single-bit error is
-//! detected in both modes: a data or parity flip breaks parity, a header flip either
-//! breaks parity or (always, since both valid Standard16 headers are two flips apart)
-//! produces a rejected header. Under [`Parity::Ignore`] exactly the flips of
-//! the data and parity bits (16..0 in Standard16, 18..0 in Extended18) go undetected;
-//! header flips are still rejected. No 2-bit error is seen by parity; only those that
-//! produce a rejected header are caught ([`detected_double_errors`] measures it).
+//! detected in both modes. A flip of a data or parity bit breaks parity under both
+//! policies. A flip of a header bit is rejected by the header check alone: in
+//! Standard16 the two valid headers `001` and `111` are two flips apart, so one flip
+//! always yields a reserved header; in Extended18 the header is bit 19 only, and
+//! clearing it is rejected (under WholeFrame parity breaks too). Under
+//! [`Parity::Ignore`] exactly the flips of the bits below the header (16..0 in
+//! Standard16, 18..0 in Extended18) go undetected; header flips are still rejected.
+//! No 2-bit error is seen by parity; only those that produce a rejected header are
+//! caught ([`detected_double_errors`] measures it: 53 of 190 pairs in Standard16 —
+//! every pair touching the header except bits 19 + 18, which turns `001` into `111`
+//! and back — and 19 of 190 in Extended18, whatever the parity policy).
 //!
 //! # STATUS (notes, "STATUS")
 //! Two of the three field behaviours are codecs here (the third, XY2-100E selectable

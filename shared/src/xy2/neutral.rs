@@ -241,6 +241,8 @@ mod tests {
             let s = StatusWord::from_alarms(alarms);
             prop_assert_eq!(s.alarms().any(), alarms.any());
             prop_assert_eq!(s.alarms().0 & !Alarms::POWER.0, bits & WORD_ALARMS.0 & !Alarms::POWER.0);
+            let other = bits & !WORD_ALARMS.0 != 0;
+            prop_assert_eq!(!s.power_ok, alarms.contains(Alarms::POWER) || other);
             prop_assert_eq!(Health::from_alarms(alarms) == Health::Fault, alarms.any());
             prop_assert_eq!(Health::from_alarms(Health::Fault.alarms()), Health::Fault);
         }

@@ -333,6 +333,22 @@ mod tests {
     }
 
     #[test]
+    fn errors_display_what_failed() {
+        let e = StatusError::BytesDiffer {
+            high: 0xFD,
+            low: 0xFC,
+        };
+        assert_eq!(e.to_string(), "status bytes differ: 0xfd vs 0xfc");
+        let e = StatusError::FixedBits { byte: 0xFF };
+        assert_eq!(e.to_string(), "status byte 0b11111111 has wrong fixed bits");
+        let e = StatusError::Frame(DecodeError::TooWide { word: 1 << 20 });
+        assert_eq!(
+            e.to_string(),
+            "status frame: word 0x100000 is wider than 20 bits"
+        );
+    }
+
+    #[test]
     fn level_polarity() {
         let low_ok = StatusLevel::default();
         assert_eq!(low_ok.polarity, Polarity::LowIsOk);
