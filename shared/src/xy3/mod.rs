@@ -75,3 +75,6 @@ pub mod neutral;
 
 pub use command::{AxisFlags, BackRate, CodeTooWide, Command};
 pub use frame::{decode, encode, DecodeError, EncodeError, Frame, FrameSize};
+
+#[cfg(test)]
+mod tests;
