@@ -41,7 +41,7 @@
 //! A command frame carries a 20-bit code, typed by [`Command`]. Commands are meant for
 //! the X channel; a controller may repeat them on the other channels and a sink may
 //! ignore those copies ([`neutral::apply`] does). Every command is optional for a sink,
-//! and unknown codes are ignored (the bridge counts them).
+//! and a sink ignores unknown codes (the bridge should count them).
 //!
 //! # What the parity detects
 //! Worked out from the layout above and checked exhaustively in the tests.

@@ -305,6 +305,48 @@ fn decode_rejects_bad_words() {
 }
 
 #[test]
+fn stuck_lines() {
+    // Documented blind spot: a line stuck low reads as a valid 24-bit command frame
+    // with the unknown code 0.
+    assert_eq!(decode(0, FrameSize::Bits24), Ok(Frame::Command24(0)));
+    assert_eq!(Command::from_code(0), Ok(Command::Unknown(0)));
+    // In a 32-bit window the same line fails the size check; stuck high fails both.
+    assert!(matches!(
+        decode(0, FrameSize::Bits32),
+        Err(DecodeError::SizeMismatch { .. })
+    ));
+    assert!(matches!(
+        decode(0xFF_FFFF, FrameSize::Bits24),
+        Err(DecodeError::SizeMismatch { .. })
+    ));
+    assert!(matches!(
+        decode(u32::MAX, FrameSize::Bits32),
+        Err(DecodeError::Parity { .. })
+    ));
+}
+
+#[test]
+fn errors_display_their_data() {
+    extern crate std;
+    use std::string::ToString;
+    let e = DecodeError::Parity {
+        expected: 1,
+        got: 0,
+    };
+    assert_eq!(e.to_string(), "parity mismatch: expected 0x1, got 0x0");
+    let e = DecodeError::SizeMismatch {
+        framed: FrameSize::Bits24,
+        announced: FrameSize::Bits32,
+    };
+    assert_eq!(e.to_string(), "received 24 bits but first bit announces 32");
+    let e = EncodeError::PositionTooWide {
+        value: 0x10_0000,
+        bits: 20,
+    };
+    assert_eq!(e.to_string(), "position 0x100000 does not fit 20 bits");
+}
+
+#[test]
 fn neutral_conversions() {
     // 16-bit value 0x1234 travels MSB-aligned: << 4 in 24-bit, << 10 in 32-bit frames.
     let p16 = Position::from_raw(0x1234, 16).unwrap();
