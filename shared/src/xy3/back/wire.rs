@@ -64,7 +64,9 @@ impl LengthRule {
 
     /// Whether `len` satisfies the rule.
     pub const fn allows(self, len: usize) -> bool {
-        len >= self.min as usize && len <= self.max as usize && len.is_multiple_of(self.unit as usize)
+        len >= self.min as usize
+            && len <= self.max as usize
+            && len.is_multiple_of(self.unit as usize)
     }
 }
 
