@@ -41,7 +41,7 @@ fn sync_after_rate_change_and_backwards_clock() {
     assert_eq!(sent(&mut s, 2, &vendor()), v);
     // A clock that jumps back sends a SYNC rather than none.
     assert_eq!(sent(&mut s, 0, &vendor()), [&SYNC[..], &v].concat());
-    assert!(Sender::DEFAULT_SYNC_INTERVAL_US <= 100_000);
+    const { assert!(Sender::DEFAULT_SYNC_INTERVAL_US <= 100_000) };
 }
 
 #[test]
@@ -156,9 +156,11 @@ const CODE_ALARM: &[(u8, Alarms)] = &[
 fn error_state_sets_codes_and_replaces_code_alarms() {
     for &(code, alarm) in CODE_ALARM {
         assert_eq!(alarm_for(code), alarm, "code {code}");
-        let mut st = HeadStatus::default();
         // A stale code alarm goes away, the bridge's own alarm stays.
-        st.alarms = Alarms::POWER.union(Alarms::STATUS_LOST);
+        let mut st = HeadStatus {
+            alarms: Alarms::POWER.union(Alarms::STATUS_LOST),
+            ..HeadStatus::default()
+        };
         apply(
             &Packet::ErrorState(HVec::from_slice(&[0, code]).unwrap()),
             &mut st,
