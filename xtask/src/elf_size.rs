@@ -30,15 +30,12 @@ fn region(addr: u64) -> &'static str {
 /// Reads the section table of `elf`.
 pub fn read(elf: &Path) -> Result<Size, String> {
     let data = std::fs::read(elf).map_err(|e| format!("cannot read {}: {e}", elf.display()))?;
-    let file =
-        object::File::parse(&*data).map_err(|e| format!("{}: not an ELF: {e}", elf.display()))?;
+    let file = object::File::parse(&*data).map_err(|e| format!("{}: not an ELF: {e}", elf.display()))?;
     let mut flash = 0;
     let mut ram = 0;
     let mut regions: Vec<(String, u64)> = Vec::new();
     for section in file.sections() {
-        let SectionFlags::Elf { sh_flags } = section.flags() else {
-            continue;
-        };
+        let SectionFlags::Elf { sh_flags } = section.flags() else { continue };
         // SHF_ALLOC: the section occupies memory at run time.
         if sh_flags & u64::from(object::elf::SHF_ALLOC) == 0 || section.size() == 0 {
             continue;
@@ -61,9 +58,5 @@ pub fn read(elf: &Path) -> Result<Size, String> {
         }
     }
     regions.sort_by(|a, b| b.1.cmp(&a.1));
-    Ok(Size {
-        flash,
-        ram,
-        regions,
-    })
+    Ok(Size { flash, ram, regions })
 }

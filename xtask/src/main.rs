@@ -86,53 +86,25 @@ fn test_all() -> Result {
     let started = Instant::now();
     cargo(&["fmt", "--all", "--", "--check"])?;
 
-    let host_clippy = with_packages(
-        vec!["clippy", "--target", HOST, "--all-targets"],
-        HOST_PACKAGES,
-    );
+    let host_clippy = with_packages(vec!["clippy", "--target", HOST, "--all-targets"], HOST_PACKAGES);
     cargo(&[host_clippy.as_slice(), &["--", "-D", "warnings"]].concat())?;
+    cargo(&["clippy", "--release", "--target", MCU, "--bins", "--", "-D", "warnings"])?;
     cargo(&[
-        "clippy",
-        "--release",
-        "--target",
-        MCU,
-        "--bins",
-        "--",
-        "-D",
-        "warnings",
-    ])?;
-    cargo(&[
-        "clippy",
-        "--release",
-        "--target",
-        MCU,
-        "-p",
-        "xy-bridge-shared",
-        "--features",
-        "defmt",
-        "--",
-        "-D",
-        "warnings",
+        "clippy", "--release", "--target", MCU, "-p", "xy-bridge-shared", "--features", "defmt",
+        "--", "-D", "warnings",
     ])?;
 
     let host_test = with_packages(vec!["test", "--release", "--target", HOST], HOST_PACKAGES);
     cargo(&host_test)?;
 
     firmware_size()?;
-    eprintln!(
-        "\nxtask: all checks passed in {:.0} s",
-        started.elapsed().as_secs_f64()
-    );
+    eprintln!("\nxtask: all checks passed in {:.0} s", started.elapsed().as_secs_f64());
     Ok(())
 }
 
 fn firmware_size() -> Result {
     cargo(&["build", "--release", "--target", MCU, "--bin", "firmware"])?;
-    let elf = root()
-        .join("target")
-        .join(MCU)
-        .join("release")
-        .join("firmware");
+    let elf = root().join("target").join(MCU).join("release").join("firmware");
     let size = elf_size::read(&elf)?;
     println!(
         "firmware: flash {} bytes ({:.1} KiB of {} KiB budget), RAM {} bytes ({:.1} KiB) static",
@@ -146,10 +118,7 @@ fn firmware_size() -> Result {
         println!("  {name:<8} {bytes:>8} bytes");
     }
     if size.flash > FLASH_BUDGET {
-        return Err(format!(
-            "firmware flash use {} exceeds the {FLASH_BUDGET}-byte budget",
-            size.flash
-        ));
+        return Err(format!("firmware flash use {} exceeds the {FLASH_BUDGET}-byte budget", size.flash));
     }
     Ok(())
 }
