@@ -60,7 +60,11 @@ fn raw_stream(data: &[u8]) {
     for e in &events {
         if let Ev::Packet(t, payload) = e {
             packets += 1;
-            assert!(check_length(*t, payload.len()).is_ok(), "{t:#x} len {}", payload.len());
+            assert!(
+                check_length(*t, payload.len()).is_ok(),
+                "{t:#x} len {}",
+                payload.len()
+            );
             // The length was checked by the parser, so only the ASCII rule can fail.
             match Packet::decode(*t, payload) {
                 Ok(_) | Err(PacketError::NotAscii { .. }) => {}
@@ -113,7 +117,9 @@ fn build(recipe: &mut Recipe<'_>) -> Vec<Segment> {
         let op = recipe.next();
         if op % 4 == 0 {
             let n = usize::from(recipe.next() % 16);
-            segs.push(Segment::Garbage((0..n).map(|_| no_head(recipe.next())).collect()));
+            segs.push(Segment::Garbage(
+                (0..n).map(|_| no_head(recipe.next())).collect(),
+            ));
             continue;
         }
         let t = match recipe.next() % 12 {
