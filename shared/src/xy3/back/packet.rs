@@ -3,7 +3,7 @@
 
 use heapless::Vec;
 
-use super::wire::{check_length, order, ty, HEAD, HEADER_LEN};
+use super::wire::{check_length, order, ty, LengthRule, HEAD, HEADER_LEN};
 use crate::model::{Text, COMPONENTS};
 
 /// Payload of a packet type this code does not know (the length byte allows 255).
@@ -13,29 +13,50 @@ pub type RawPayload = Vec<u8, 255>;
 /// (XY3-100 §5.2 component tables; the same order for all three arrays).
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Hash, PartialOrd, Ord)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[allow(missing_docs)] // the names are the documentation
 pub enum Component {
+    /// The head as a whole (housing).
     Head = 0,
+    /// The central DSP.
     Dsp = 1,
+    /// The DAC of the X channel.
     DacX = 2,
+    /// The DAC of the Y channel.
     DacY = 3,
+    /// The DAC of the Z channel.
     DacZ = 4,
+    /// The DAC of the U channel.
     DacU = 5,
+    /// The DAC of the W channel.
     DacW = 6,
+    /// The driver of the X galvo / actuator.
     DriverX = 7,
+    /// The driver of the Y galvo / actuator.
     DriverY = 8,
+    /// The driver of the Z galvo / actuator.
     DriverZ = 9,
+    /// The driver of the U galvo / actuator.
     DriverU = 10,
+    /// The driver of the W galvo / actuator.
     DriverW = 11,
+    /// The X galvo / actuator.
     GalvoX = 12,
+    /// The Y galvo / actuator.
     GalvoY = 13,
+    /// The Z galvo / actuator.
     GalvoZ = 14,
+    /// The U galvo / actuator.
     GalvoU = 15,
+    /// The W galvo / actuator.
     GalvoW = 16,
+    /// The optics of the X channel.
     MirrorX = 17,
+    /// The optics of the Y channel.
     MirrorY = 18,
+    /// The focus optics (Z channel).
     MirrorZ = 19,
+    /// The optics of the U channel.
     MirrorU = 20,
+    /// The optics of the W channel.
     MirrorW = 21,
 }
 
@@ -366,7 +387,7 @@ impl Packet {
                     return Err(EncodeError::ReservedValue { ty: t, index });
                 }
             }
-            Self::Unknown { ty, .. } if super::wire::LengthRule::for_type(*ty).is_some() => {
+            Self::Unknown { ty, .. } if LengthRule::for_type(*ty).is_some() => {
                 return Err(EncodeError::KnownType(*ty));
             }
             _ => {}

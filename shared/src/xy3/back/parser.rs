@@ -113,7 +113,7 @@ enum Step {
 }
 
 /// The backchannel receiver. Starts out of sync.
-#[derive(Clone, Debug)]
+#[derive(Clone, PartialEq, Eq, Debug)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Parser {
     state: State,
