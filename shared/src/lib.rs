@@ -10,7 +10,7 @@
 //! - [`model`]: protocol-neutral forward frame and head status.
 //! - [`xy2`]: XY2-100 and XY2-100E.
 //! - [`xy3`]: XY3-100 forward frames, commands and the RS485 backchannel.
-//! - [`hans`]: HANS-100.
+//! - [`hans`]: the HANS-100 protocol.
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]

@@ -96,7 +96,11 @@ impl Position {
             return Err(PositionError::TooWide { value, bits });
         }
         Ok(Position {
-            aligned: if bits == 32 { value } else { value << (32 - bits) },
+            aligned: if bits == 32 {
+                value
+            } else {
+                value << (32 - bits)
+            },
             bits,
         })
     }
@@ -448,7 +452,10 @@ mod tests {
                 bits: 16
             })
         );
-        assert_eq!(Position::from_raw(u32::MAX, 32).unwrap().to_raw(32), u32::MAX);
+        assert_eq!(
+            Position::from_raw(u32::MAX, 32).unwrap().to_raw(32),
+            u32::MAX
+        );
     }
 
     #[test]
