@@ -73,7 +73,8 @@ pub enum DecodeError {
     /// Bits outside the 125-bit pattern (u128 bits 127..125, or the 3 trailing bits
     /// of the 16-byte form) were not zero.
     Padding {
-        /// The three padding bits.
+        /// The three padding bits, the first of them (u128 bit 127, or byte 15 bit 2)
+        /// in bit 2.
         got: u8,
     },
     /// The start pair was not `0 1`.
