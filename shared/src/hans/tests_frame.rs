@@ -24,6 +24,9 @@ fn bits(s: &str) -> u128 {
     v
 }
 
+/// DATA1, DATA2, DATA3 of a table row.
+type Words = (u32, u32, u32);
+
 fn frame(d1: u32, d2: u32, d3: u32) -> Frame {
     Frame::new(d1, d2, d3).unwrap()
 }
@@ -34,7 +37,7 @@ fn frame(d1: u32, d2: u32, d3: u32) -> Frame {
 // Centre: like zero, but the D19 pair of each word is "10": line bits 3,4 / 43,44 /
 // 83,84 (u128 display positions 5,6 / 45,46 / 85,86) -> nibbles 1, 11, 21 become C.
 #[rustfmt::skip]
-const PATTERNS: &[((u32, u32, u32), u128)] = &[
+const PATTERNS: &[(Words, u128)] = &[
     ((0x0_0000, 0x0_0000, 0x0_0000), 0x0AAA_AAAA_AAAA_AAAA_AAAA_AAAA_AAAA_AAAF),
     ((0x8_0000, 0x8_0000, 0x8_0000), 0x0CAA_AAAA_AAAC_AAAA_AAAA_ACAA_AAAA_AAAF),
     ((0xF_FFFF, 0xF_FFFF, 0xF_FFFF), 0x0D55_5555_5555_5555_5555_5555_5555_5557),
@@ -43,7 +46,7 @@ const PATTERNS: &[((u32, u32, u32), u128)] = &[
 // The same kind of table written bit by bit (start | DATA1 | DATA2 | DATA3 | stop),
 // one nibble (4 pairs) per group.
 #[rustfmt::skip]
-const BIT_PATTERNS: &[((u32, u32, u32), &str)] = &[
+const BIT_PATTERNS: &[(Words, &str)] = &[
     ((0x1_2345, 0xA_BCDE, 0x0_F0F7),
      "01 \
       01010110 01011001 01011010 01100101 01100110 \
@@ -69,7 +72,7 @@ const BIT_PATTERNS: &[((u32, u32, u32), &str)] = &[
 // Full: 01 101010 = 0x6A, 14 x 0xAA, then 10 111 000 = 0xB8.
 // Centre: like zero but bytes 0, 5, 10 hold a "10" pair at their bits 5..4: 0x65.
 #[rustfmt::skip]
-const BYTES: &[((u32, u32, u32), [u8; 16])] = &[
+const BYTES: &[(Words, [u8; 16])] = &[
     ((0x0_0000, 0x0_0000, 0x0_0000),
      [0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x78]),
     ((0x8_0000, 0x8_0000, 0x8_0000),
@@ -228,8 +231,11 @@ fn bad_input_reports_the_failing_check() {
 // byte 31 = 11 + neighbour 111111 = 0xFF.
 // Full-scale frame into an all-zero ring: byte 15 = 00000 011 = 0x03, bytes 16..=30 =
 // 0x55 (line bits 3..122 alternate 0101..., bit 122 is a stop 1), byte 31 = 11 000000.
+/// (byte index, expected value) pairs.
+type Changed = &'static [(usize, u8)];
+
 #[rustfmt::skip]
-const SLOT1: &[(u8, (u32, u32, u32), &[(usize, u8)])] = &[
+const SLOT1: &[(u8, Words, Changed)] = &[
     // (fill, frame, changed bytes (index, value); all others keep the fill)
     (0xFF, (0x0_0000, 0x0_0000, 0x0_0000),
      &[(15, 0xFA), (16, 0xAA), (17, 0xAA), (18, 0xAA), (19, 0xAA), (20, 0xAA), (21, 0xAA),

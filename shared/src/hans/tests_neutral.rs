@@ -16,8 +16,16 @@ fn frame(d1: u32, d2: u32, d3: u32) -> Frame {
     Frame::new(d1, d2, d3).unwrap()
 }
 
+/// (frame words, (X, Y) raw 20-bit, Z raw 16-bit, laser).
+type ForwardRow = (
+    (u32, u32, u32),
+    (u32, u32),
+    Option<u32>,
+    Option<LaserControl>,
+);
+
 #[rustfmt::skip]
-const FORWARD: &[((u32, u32, u32), (u32, u32), Option<u32>, Option<LaserControl>)] = &[
+const FORWARD: &[ForwardRow] = &[
     // (frame words, (X, Y) raw 20-bit, Z raw 16-bit, laser)
     ((0x0_0000, 0x0_0000, 0x0_0000), (0x0_0000, 0x0_0000), Some(0x0000), None),
     ((0x8_0000, 0x8_0000, 0x8_0000), (0x8_0000, 0x8_0000), Some(0x8000), None),
@@ -69,17 +77,21 @@ fn from_forward_resizes_and_holds() {
         Ok(frame(0x1_1111, 0, 0x3_3330))
     );
     // An unencodable laser value is an error, not a wrong frame.
-    let mut bad = ForwardFrame::default();
-    bad.laser = Some(LaserControl::Other { code: 16, data: 0 });
+    let bad = ForwardFrame {
+        laser: Some(LaserControl::Other { code: 16, data: 0 }),
+        ..ForwardFrame::default()
+    };
     assert!(Frame::from_forward(&bad, &hold).is_err());
 }
 
 #[test]
 fn status_frames_apply_to_head_status() {
     let mut rx = StatusReceiver::new();
-    let mut st = HeadStatus::default();
-    st.alarms = Alarms::STATUS_LOST; // not HANS-100's to change
-                                     // Code 64 (X 0x1234, Y 0xABCD) + DATA3 code 14 (Z 0x8000).
+    let mut st = HeadStatus {
+        alarms: Alarms::STATUS_LOST, // not HANS-100's to change
+        ..HeadStatus::default()
+    };
+    // Code 64 (X 0x1234, Y 0xABCD) + DATA3 code 14 (Z 0x8000).
     rx.apply(&frame(0x1_2344, 0xA_BCD0, 0x8_000E), &mut st)
         .unwrap();
     assert_eq!(
@@ -148,8 +160,10 @@ fn status_frames_apply_to_head_status() {
 
 #[test]
 fn bridge_alarms_reach_a_hans_controller() {
-    let mut st = HeadStatus::default();
-    st.alarms = Alarms::MECHANICAL.union(Alarms::INPUT_LOST);
+    let mut st = HeadStatus {
+        alarms: Alarms::MECHANICAL.union(Alarms::INPUT_LOST),
+        ..HeadStatus::default()
+    };
     st.actual[2] = pos(0, 16);
     let GalvoStatus::Velocity { alarms, .. } = GalvoStatus::velocity_from(&st) else {
         panic!("code 65 expected");
@@ -172,8 +186,10 @@ fn bridge_alarms_reach_a_hans_controller() {
         ]
     );
     // A LASER alarm without a laser word is sent as the D3 system alarm.
-    let mut l = HeadStatus::default();
-    l.alarms = Alarms::LASER;
+    let l = HeadStatus {
+        alarms: Alarms::LASER,
+        ..HeadStatus::default()
+    };
     assert_eq!(
         DeviceExt::all_from(&l).as_slice(),
         &[DeviceExt::LaserAlarms(LaserAlarms(LaserAlarms::SYSTEM))]
