@@ -43,8 +43,12 @@ fuzz_target!(|data: &[u8]| {
     assert!(Frame::decode(f.encode() ^ 1 << t).is_err());
     assert_eq!(ControllerExt::from_data3(w3).unwrap().to_data3(), Ok(w3));
     assert_eq!(DeviceExt::from_data3(w3).unwrap().to_data3(), Ok(w3));
-    assert_eq!(GalvoStatus::from_words(w1, w2).unwrap().to_words(), Ok((w1, w2)));
-    if let Ok(n) = f.to_forward() {
-        assert_eq!(Frame::from_forward(&n, &Frame::CENTRE), Ok(f));
-    }
+    assert_eq!(
+        GalvoStatus::from_words(w1, w2).unwrap().to_words(),
+        Ok((w1, w2))
+    );
+    assert_eq!(ControllerExt::from_frame(&f).to_data3(), Ok(w3));
+    assert_eq!(DeviceExt::from_frame(&f).to_data3(), Ok(w3));
+    assert_eq!(GalvoStatus::from_frame(&f).to_words(), Ok((w1, w2)));
+    assert_eq!(Frame::from_forward(&f.to_forward(), &Frame::CENTRE), Ok(f));
 });

@@ -6,6 +6,7 @@
 //! STATUS (CTRL_CODE2). Every one of the 16 codes with any data decodes, and re-encodes
 //! to the identical word; codes without a defined meaning are kept raw.
 
+use super::Frame;
 use crate::model::LaserControl;
 
 /// Why a value cannot be encoded as an extension word.
@@ -46,6 +47,13 @@ pub(crate) fn split(word: u32) -> Result<(u8, u16), ExtError> {
     Ok(((word & 0xF) as u8, (word >> 4) as u16))
 }
 
+/// Splits a frame's DATA3 (always 20 bits) into (code, data).
+fn split_data3(frame: &Frame) -> (u8, u16) {
+    let w = frame.data3();
+    // Truncations intended: 4 and 16 bits of a 20-bit word.
+    ((w & 0xF) as u8, (w >> 4) as u16)
+}
+
 /// Joins a 4-bit code and 16 data bits into a 20-bit word.
 pub(crate) fn join(code: u8, data: u16) -> Result<u32, ExtError> {
     if code > 0xF {
@@ -69,7 +77,17 @@ impl ControllerExt {
     /// Decodes a forward DATA3 word.
     pub fn from_data3(word: u32) -> Result<Self, ExtError> {
         let (code, d) = split(word)?;
-        Ok(match code {
+        Ok(Self::from_parts(code, d))
+    }
+
+    /// Decodes a forward frame's DATA3 (cannot fail: every code has a meaning).
+    pub fn from_frame(frame: &Frame) -> Self {
+        let (code, d) = split_data3(frame);
+        Self::from_parts(code, d)
+    }
+
+    fn from_parts(code: u8, d: u16) -> Self {
+        match code {
             0 => Self::Z(d),
             1 => Self::Laser(LaserControl::RemoteOutputs(d)),
             3 => Self::Laser(LaserControl::Power {
@@ -85,7 +103,7 @@ impl ControllerExt {
             6 => Self::Laser(LaserControl::PulseWidthMode(d)),
             9 => Self::Laser(LaserControl::StandbyPower(d)),
             code => Self::Laser(LaserControl::Other { code, data: d }),
-        })
+        }
     }
 
     /// Encodes as a forward DATA3 word. `LaserControl::Other` is sent as given, even
@@ -214,7 +232,17 @@ impl DeviceExt {
     /// Decodes a returned DATA3 word.
     pub fn from_data3(word: u32) -> Result<Self, ExtError> {
         let (code, d) = split(word)?;
-        Ok(match code {
+        Ok(Self::from_parts(code, d))
+    }
+
+    /// Decodes a status frame's DATA3 (cannot fail: unknown codes are `Raw`).
+    pub fn from_frame(frame: &Frame) -> Self {
+        let (code, d) = split_data3(frame);
+        Self::from_parts(code, d)
+    }
+
+    fn from_parts(code: u8, d: u16) -> Self {
+        match code {
             2 => Self::RemoteInputs(d),
             7 => Self::PulseWidthMode(d),
             10 => Self::LaserAlarms(LaserAlarms(d)),
@@ -230,7 +258,7 @@ impl DeviceExt {
                 },
             },
             code => Self::Raw { code, data: d },
-        })
+        }
     }
 
     /// Encodes as a returned DATA3 word. `Raw` is sent as given.

@@ -19,15 +19,15 @@ fn position(raw: u32, bits: u8) -> Option<Position> {
 impl Frame {
     /// The neutral view of a forward frame: X = DATA1, Y = DATA2 (20 bits), DATA3 code
     /// 0 -> Z (16 bits), any other code -> `laser`.
-    pub fn to_forward(&self) -> Result<ForwardFrame, ExtError> {
+    pub fn to_forward(&self) -> ForwardFrame {
         let mut f = ForwardFrame::default();
         f.axes[Axis::X.index()] = position(self.data1(), XY_BITS);
         f.axes[Axis::Y.index()] = position(self.data2(), XY_BITS);
-        match ControllerExt::from_data3(self.data3())? {
+        match ControllerExt::from_frame(self) {
             ControllerExt::Z(z) => f.axes[Axis::Z.index()] = position(u32::from(z), Z_BITS),
             ControllerExt::Laser(l) => f.laser = Some(l),
         }
-        Ok(f)
+        f
     }
 
     /// The forward frame to send for `f`. HANS-100 must send all three words every
@@ -102,12 +102,9 @@ impl StatusReceiver {
     }
 
     /// Decodes both parts of a status frame (DATA1+DATA2 and DATA3) into `status`.
-    pub fn apply(&mut self, frame: &Frame, status: &mut HeadStatus) -> Result<(), ExtError> {
-        let galvo = GalvoStatus::from_words(frame.data1(), frame.data2())?;
-        let device = DeviceExt::from_data3(frame.data3())?;
-        self.apply_galvo(&galvo, status);
-        self.apply_device(&device, status);
-        Ok(())
+    pub fn apply(&mut self, frame: &Frame, status: &mut HeadStatus) {
+        self.apply_galvo(&GalvoStatus::from_frame(frame), status);
+        self.apply_device(&DeviceExt::from_frame(frame), status);
     }
 
     /// Applies a galvo status (codes 64, 65; other codes are ignored).

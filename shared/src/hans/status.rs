@@ -10,6 +10,7 @@
 //! - DATA2[5] is reserved: its wire level is kept so a round trip is exact.
 
 use super::ext::{split, ExtError};
+use super::Frame;
 
 /// Galvo alarms and warnings of code 65. `true` = active (the wire sends 0 for
 /// active, 1 for normal; the conversion happens in the codec).
@@ -83,8 +84,20 @@ impl GalvoStatus {
     pub fn from_words(data1: u32, data2: u32) -> Result<Self, ExtError> {
         let (c1, d1) = split(data1)?;
         let (c2, d2) = split(data2)?;
-        let code = c1 << 4 | c2;
-        Ok(match code {
+        Ok(Self::from_parts(c1 << 4 | c2, d1, d2))
+    }
+
+    /// Decodes DATA1 and DATA2 of a status frame (cannot fail: unknown codes are
+    /// `Raw`).
+    pub fn from_frame(frame: &Frame) -> Self {
+        let (w1, w2) = (frame.data1(), frame.data2());
+        // Truncations intended: 4 and 16 bits of 20-bit words.
+        let code = ((w1 & 0xF) << 4 | (w2 & 0xF)) as u8;
+        Self::from_parts(code, (w1 >> 4) as u16, (w2 >> 4) as u16)
+    }
+
+    fn from_parts(code: u8, d1: u16, d2: u16) -> Self {
+        match code {
             CODE_POSITION => Self::Position { x: d1, y: d2 },
             CODE_VELOCITY => Self::Velocity {
                 x: d1 >> 4,
@@ -104,7 +117,7 @@ impl GalvoStatus {
                 code,
                 data: u32::from(d1) << 16 | u32::from(d2),
             },
-        })
+        }
     }
 
     /// Encodes as (DATA1, DATA2). `Raw` is sent as given.

@@ -39,7 +39,7 @@ const FORWARD: &[ForwardRow] = &[
 fn forward_table() {
     for &((d1, d2, d3), (x, y), z, laser) in FORWARD {
         let f = frame(d1, d2, d3);
-        let n = f.to_forward().unwrap();
+        let n = f.to_forward();
         assert_eq!(n.axis(Axis::X), pos(x, 20));
         assert_eq!(n.axis(Axis::Y), pos(y, 20));
         assert_eq!(n.axis(Axis::Z), z.and_then(|z| pos(z, 16)));
@@ -92,8 +92,7 @@ fn status_frames_apply_to_head_status() {
         ..HeadStatus::default()
     };
     // Code 64 (X 0x1234, Y 0xABCD) + DATA3 code 14 (Z 0x8000).
-    rx.apply(&frame(0x1_2344, 0xA_BCD0, 0x8_000E), &mut st)
-        .unwrap();
+    rx.apply(&frame(0x1_2344, 0xA_BCD0, 0x8_000E), &mut st);
     assert_eq!(
         st.actual,
         [pos(0x1234, 16), pos(0xABCD, 16), pos(0x8000, 16)]
@@ -102,8 +101,7 @@ fn status_frames_apply_to_head_status() {
     // Code 65: X velocity 0x123, Y 0xABC, DATA1 flags 0111 (over-temperature),
     // DATA2 flags 1011 (unfiltered low speed); DATA3 code 15, Z velocity 0x456,
     // flags 1011 (Z following error).
-    rx.apply(&frame(0x1_2374, 0xA_BCB1, 0x4_56BF), &mut st)
-        .unwrap();
+    rx.apply(&frame(0x1_2374, 0xA_BCB1, 0x4_56BF), &mut st);
     assert_eq!(st.velocity, [Some(0x123), Some(0xABC), Some(0x456)]);
     assert_eq!(
         st.alarms,
@@ -115,8 +113,7 @@ fn status_frames_apply_to_head_status() {
     // Galvo all normal; Z reports following error and over-temperature (flags 0011,
     // data 0x0003): over-temperature is now only on Z, and the union keeps
     // TEMPERATURE raised by the Z report.
-    rx.apply(&frame(0x0_00F4, 0x0_00F1, 0x0_003F), &mut st)
-        .unwrap();
+    rx.apply(&frame(0x0_00F4, 0x0_00F1, 0x0_003F), &mut st);
     assert_eq!(
         st.alarms,
         Alarms::STATUS_LOST
@@ -125,7 +122,7 @@ fn status_frames_apply_to_head_status() {
     );
     assert_eq!(st.warnings, Warnings::NONE);
     // Laser code 10: power alarm + temperature warning + emission; galvo part raw.
-    rx.apply(&frame(0, 0, 0x8_005A), &mut st).unwrap();
+    rx.apply(&frame(0, 0, 0x8_005A), &mut st);
     assert_eq!(st.laser_state, Some(0x8005));
     assert!(st.alarms.contains(Alarms::LASER));
     assert_eq!(
@@ -135,9 +132,8 @@ fn status_frames_apply_to_head_status() {
     // Galvo code 65 with following error + power + communication; Z back to normal;
     // laser only emitting.
     // DATA1 flags 1010, DATA2 flags 1110 (reserved 1), Z flags 1111.
-    rx.apply(&frame(0x0_00A4, 0x0_00E1, 0x0_00FF), &mut st)
-        .unwrap();
-    rx.apply(&frame(0, 0, 0x8_000A), &mut st).unwrap();
+    rx.apply(&frame(0x0_00A4, 0x0_00E1, 0x0_00FF), &mut st);
+    rx.apply(&frame(0, 0, 0x8_000A), &mut st);
     assert_eq!(
         st.alarms,
         Alarms::STATUS_LOST
@@ -148,8 +144,8 @@ fn status_frames_apply_to_head_status() {
     );
     assert_eq!(st.warnings, Warnings::LASER_EMISSION);
     // Remote inputs (2) and pulse-width mode (7).
-    rx.apply(&frame(0, 0, 0xB_EEF2), &mut st).unwrap();
-    rx.apply(&frame(0, 0, 0x0_0037), &mut st).unwrap();
+    rx.apply(&frame(0, 0, 0xB_EEF2), &mut st);
+    rx.apply(&frame(0, 0, 0x0_0037), &mut st);
     assert_eq!(
         (st.remote_inputs, st.pulse_width_mode),
         (Some(0xBEEF), Some(3))
@@ -244,9 +240,9 @@ proptest! {
     #[test]
     fn forward_frame_round_trip(d1 in 0u32..=0xF_FFFF, d2 in 0u32..=0xF_FFFF, d3 in 0u32..=0xF_FFFF) {
         let f = frame(d1, d2, d3);
-        let n = f.to_forward().unwrap();
+        let n = f.to_forward();
         prop_assert_eq!(Frame::from_forward(&n, &frame(d2, d3, d1)), Ok(f));
-        prop_assert_eq!(Frame::from_forward(&n, &frame(d1, d2, d3)).unwrap().to_forward(), Ok(n));
+        prop_assert_eq!(Frame::from_forward(&n, &frame(d1, d2, d3)).unwrap().to_forward(), n);
     }
 
     /// Every HeadStatus HANS-100 can represent survives building all status frames
@@ -261,7 +257,7 @@ proptest! {
         let mut got = HeadStatus::default();
         for (i, d) in parts.iter().enumerate() {
             let f = status_frame(&galvo[i % 2], d).unwrap();
-            rx.apply(&f, &mut got).unwrap();
+            rx.apply(&f, &mut got);
         }
         prop_assert_eq!(got, st);
     }
