@@ -1,5 +1,5 @@
-//! DATA3 extension codes (HANS-100 spec "HANS-100 协议解析"): DATA3[3:0] is a 4-bit
-//! code, DATA3[19:4] its 16 data bits ("D0" of the data is DATA3 bit 4).
+//! DATA3 extension codes (HANS-100 spec "HANS-100 协议解析"): `DATA3[3:0]` is a 4-bit
+//! code, `DATA3[19:4]` its 16 data bits ("D0" of the data is DATA3 bit 4).
 //!
 //! The code tables differ by direction: [`ControllerExt`] is what a controller sends to
 //! the device (CTRL_CODE1), [`DeviceExt`] what a laser, Z galvo or IO board returns on
@@ -190,13 +190,13 @@ impl LaserAlarms {
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct ZAlarms {
-    /// DATA3[7]: over-temperature alarm.
+    /// `DATA3[7]`: over-temperature alarm.
     pub over_temperature: bool,
-    /// DATA3[6]: following-error alarm.
+    /// `DATA3[6]`: following-error alarm.
     pub following_error: bool,
-    /// DATA3[5]: communication (bad or missing frames for 1000 us) alarm.
+    /// `DATA3[5]`: communication (bad or missing frames for 1000 us) alarm.
     pub communication: bool,
-    /// DATA3[4]: power / sensor / system alarm.
+    /// `DATA3[4]`: power / sensor / system alarm.
     pub power: bool,
 }
 
@@ -214,9 +214,9 @@ pub enum DeviceExt {
     ZActual(u16),
     /// Code 15: Z actual velocity and alarms.
     ZVelocity {
-        /// DATA3[19:8], opaque 12 bits (the spec gives no scale or sign).
+        /// `DATA3[19:8]`, opaque 12 bits (the spec gives no scale or sign).
         velocity: u16,
-        /// DATA3[7:4].
+        /// `DATA3[7:4]`.
         alarms: ZAlarms,
     },
     /// Any other code with its 16 data bits, kept as received.

@@ -30,9 +30,9 @@
 //! | 15 Z following error | `Alarms::POSITION_Z` |
 //! | 65 / 15 power | `Alarms::POWER` |
 //! | 65 / 15 communication | `Alarms::COMMUNICATION` |
-//! | 65 DATA1[5] / DATA2[6] low speed | `Warnings::LOW_SPEED_FILTERED` / `LOW_SPEED` |
-//! | 65 DATA2[7] over-temperature warning | `Warnings::TEMPERATURE` |
-//! | 65 DATA2[5] reserved | not mapped (sent as 1) |
+//! | 65 `DATA1[5]` / `DATA2[6]` low speed | `Warnings::LOW_SPEED_FILTERED` / `LOW_SPEED` |
+//! | 65 `DATA2[7]` over-temperature warning | `Warnings::TEMPERATURE` |
+//! | 65 `DATA2[5]` reserved | not mapped (sent as 1) |
 //! | 10 laser word | `laser_state` (raw); any alarm bit (all but D2, D15) -> `Alarms::LASER` |
 //! | 10 D2 / D15 | `Warnings::LASER_TEMPERATURE` / `LASER_EMISSION` |
 //! | 14 Z actual, 15 Z velocity | `actual[2]` (16-bit), `velocity[2]` |
@@ -51,7 +51,7 @@
 //! - Code-4/5 units "50/us" are read as 20 ns counts; the codec keeps them raw.
 //! - Forward DATA3 can carry Z or laser control, not both: laser control takes the
 //!   slot when present (see [`Frame::from_forward`]).
-//! - Codes 65 DATA2[5] and 3 D15..D11 are reserved: kept for exact round trips.
+//! - Codes 65 `DATA2[5]` and 3 D15..D11 are reserved: kept for exact round trips.
 
 pub mod ext;
 pub mod frame;

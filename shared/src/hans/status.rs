@@ -1,13 +1,13 @@
 //! DATA1/DATA2 status extension of a closed-loop galvo (HANS-100 spec, section on data
-//! returned from the galvo to the card): the 8-bit code is DATA1[3:0] (high nibble)
-//! followed by DATA2[3:0], the 32 data bits are DATA1[19:4] (high half) and
-//! DATA2[19:4].
+//! returned from the galvo to the card): the 8-bit code is `DATA1[3:0]` (high nibble)
+//! followed by `DATA2[3:0]`, the 32 data bits are `DATA1[19:4]` (high half) and
+//! `DATA2[19:4]`.
 //!
 //! Ambiguities and our decisions:
 //! - Velocity scale and sign are not defined: the 12-bit fields stay opaque.
 //! - How often status frames are sent and how codes 64 / 65 alternate is not stated:
 //!   every frame decodes on its own, in any order.
-//! - DATA2[5] is reserved: its wire level is kept so a round trip is exact.
+//! - `DATA2[5]` is reserved: its wire level is kept so a round trip is exact.
 
 use super::ext::{split, ExtError};
 use super::Frame;
@@ -17,21 +17,21 @@ use super::Frame;
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct GalvoAlarms {
-    /// DATA1[7]: over-temperature alarm (any axis above the alarm threshold).
+    /// `DATA1[7]`: over-temperature alarm (any axis above the alarm threshold).
     pub over_temperature: bool,
-    /// DATA1[6]: following-error alarm (galvo-wide, not per axis).
+    /// `DATA1[6]`: following-error alarm (galvo-wide, not per axis).
     pub following_error: bool,
-    /// DATA1[5]: low-speed warning, filtered (both axes slow for more than 10 ms).
+    /// `DATA1[5]`: low-speed warning, filtered (both axes slow for more than 10 ms).
     pub low_speed_filtered: bool,
-    /// DATA1[4]: power / sensor / system alarm.
+    /// `DATA1[4]`: power / sensor / system alarm.
     pub power: bool,
-    /// DATA2[7]: over-temperature warning (marking continues).
+    /// `DATA2[7]`: over-temperature warning (marking continues).
     pub temperature_warning: bool,
-    /// DATA2[6]: low-speed warning, unfiltered.
+    /// `DATA2[6]`: low-speed warning, unfiltered.
     pub low_speed: bool,
-    /// DATA2[5]: reserved, the raw wire level (normally 1, like an inactive flag).
+    /// `DATA2[5]`: reserved, the raw wire level (normally 1, like an inactive flag).
     pub reserved_level: bool,
-    /// DATA2[4]: communication alarm (bad or missing frames for 1000 us).
+    /// `DATA2[4]`: communication alarm (bad or missing frames for 1000 us).
     pub communication: bool,
 }
 
@@ -41,25 +41,25 @@ pub struct GalvoAlarms {
 pub enum GalvoStatus {
     /// Code 64: actual X / Y positions, the top 16 bits of the galvo's position.
     Position {
-        /// DATA1[19:4].
+        /// `DATA1[19:4]`.
         x: u16,
-        /// DATA2[19:4].
+        /// `DATA2[19:4]`.
         y: u16,
     },
     /// Code 65: actual velocities and alarms.
     Velocity {
-        /// DATA1[19:8], opaque 12 bits.
+        /// `DATA1[19:8]`, opaque 12 bits.
         x: u16,
-        /// DATA2[19:8], opaque 12 bits.
+        /// `DATA2[19:8]`, opaque 12 bits.
         y: u16,
-        /// DATA1[7:4] and DATA2[7:4].
+        /// `DATA1[7:4]` and `DATA2[7:4]`.
         alarms: GalvoAlarms,
     },
     /// Any other code with its 32 data bits, kept as received.
     Raw {
         /// CTRL_CODE3.
         code: u8,
-        /// CTRL_DATA3: DATA1[19:4] in bits 31..16, DATA2[19:4] in bits 15..0.
+        /// CTRL_DATA3: `DATA1[19:4]` in bits 31..16, `DATA2[19:4]` in bits 15..0.
         data: u32,
     },
 }
