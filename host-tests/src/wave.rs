@@ -97,8 +97,14 @@ impl Signal {
 
     /// Sets the level from `time` on. `time` must not be earlier than the last change;
     /// a change at the same time as the last one replaces it (and cancels it if the
-    /// level goes back to what it was before). Non-changes are ignored.
+    /// level goes back to what it was before). Non-changes are ignored. Time 0 is the
+    /// start of the time axis, so a change at 0 sets the initial level (this keeps the
+    /// representation unique: VCD cannot tell the two apart either).
     pub fn push(&mut self, time: Ps, level: bool) -> Result<(), WaveError> {
+        if time == 0 && self.changes.is_empty() {
+            self.initial = level;
+            return Ok(());
+        }
         if let Some(&(last, _)) = self.changes.last() {
             if time < last {
                 return Err(WaveError::TimeBackwards {
@@ -127,7 +133,7 @@ impl Signal {
         self.name = name.into();
     }
 
-    /// Level before the first change.
+    /// Level at time 0, before the first change.
     pub fn initial(&self) -> bool {
         self.initial
     }
@@ -313,6 +319,7 @@ mod tests {
             .hold(true, 5)
             .hold(false, 5)
             .build();
-        assert_eq!(b.changes(), &[(0, true), (5, false)]);
+        assert!(b.initial());
+        assert_eq!(b.changes(), &[(5, false)]);
     }
 }
