@@ -6,7 +6,8 @@ use super::{positive, ps, LineError};
 use crate::wave::{Ps, Signal, PS_PER_S};
 
 /// Encodes `bytes` back to back (no idle between frames except `gap_bits` extra stop
-/// time), starting at `t0_ps`; the line idles high before and after.
+/// time), starting at `t0_ps`; the line idles high before and after. Use `t0_ps > 0`:
+/// a change at time 0 is the initial level, so a start bit at 0 has no falling edge.
 pub fn uart_encode(
     name: &str,
     bytes: &[u8],
