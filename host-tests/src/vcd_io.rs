@@ -287,7 +287,8 @@ fn to_ps(t: u64, ratio: (u128, u128)) -> Result<Ps, VcdError> {
     let (num, den) = ratio;
     let v = u128::from(t)
         .checked_mul(num)
-        .map(|x| (x + den / 2) / den.max(1))
+        .and_then(|x| x.checked_add(den / 2))
+        .map(|x| x / den.max(1))
         .ok_or(VcdError::TimeOverflow { time: t })?;
     Ps::try_from(v).map_err(|_| VcdError::TimeOverflow { time: t })
 }
@@ -589,4 +590,29 @@ pub fn write_vcd<W: Write>(
         }
     }
     w.flush().map_err(io)
+}
+
+/// Opens `path` and reads the signals for `roles` (see [`read_vcd_roles`]); I/O errors
+/// name the file.
+pub fn read_vcd_file(
+    path: &std::path::Path,
+    roles: &[&str],
+    map: &NameMap,
+) -> Result<Waveform, VcdError> {
+    let file = std::fs::File::open(path).map_err(|e| VcdError::Io {
+        message: format!("{}: {e}", path.display()),
+    })?;
+    read_vcd_roles(file, roles, map)
+}
+
+/// Creates `path` and writes `wave` to it (see [`write_vcd`]); I/O errors name the file.
+pub fn write_vcd_file(
+    path: &std::path::Path,
+    wave: &Waveform,
+    timescale: WriteTimescale,
+) -> Result<(), VcdError> {
+    let file = std::fs::File::create(path).map_err(|e| VcdError::Io {
+        message: format!("{}: {e}", path.display()),
+    })?;
+    write_vcd(io::BufWriter::new(file), wave, timescale)
 }

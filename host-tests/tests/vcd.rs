@@ -270,3 +270,39 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn written_text_layout() {
+    let mut w = Waveform::new();
+    w.add(Signal::from_changes("CLK", false, [(10, true), (20, false)]).unwrap())
+        .unwrap();
+    w.add(Signal::from_changes("SYNC", true, [(20, false)]).unwrap())
+        .unwrap();
+    let mut out = Vec::new();
+    write_vcd(&mut out, &w, WriteTimescale::Ps).unwrap();
+    let text = String::from_utf8(out).unwrap();
+    let body = &text[text.find("$timescale").unwrap()..];
+    assert_eq!(
+        body,
+        "$timescale 1 ps $end\n$scope module bridge $end\n$var wire 1 ! CLK $end\n\
+         $var wire 1 \" SYNC $end\n$upscope $end\n$enddefinitions $end\n#0\n$dumpvars\n0!\n1\"\n\
+         $end\n#10\n1!\n#20\n0!\n0\"\n"
+    );
+}
+
+#[test]
+fn file_helpers() {
+    let dir = std::env::temp_dir().join(format!("host-tests-vcd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("out.vcd");
+    let mut w = Waveform::new();
+    w.add(Signal::from_changes("CLK", false, [(5, true)]).unwrap())
+        .unwrap();
+    host_tests::vcd_io::write_vcd_file(&path, &w, WriteTimescale::Ps).unwrap();
+    let back = host_tests::vcd_io::read_vcd_file(&path, &["CLK"], &NameMap::new()).unwrap();
+    assert_eq!(back, w);
+    let missing = dir.join("missing.vcd");
+    let e = host_tests::vcd_io::read_vcd_file(&missing, &["CLK"], &NameMap::new()).unwrap_err();
+    assert!(matches!(e, VcdError::Io { ref message } if message.contains("missing.vcd")));
+    std::fs::remove_dir_all(&dir).unwrap();
+}

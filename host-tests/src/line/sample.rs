@@ -138,6 +138,10 @@ pub fn xy3_spi(
     Ok(cap)
 }
 
+/// Upper bound on words per channel from [`Oversampler::sample`] (1 GiB), so a wrong
+/// end time gives an error instead of exhausting memory.
+pub const MAX_WORDS: u64 = 1 << 28;
+
 /// HANS-100 in: a free-running sampling clock (layouts item 3).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Oversampler {
@@ -173,10 +177,13 @@ impl Oversampler {
         // Whole words before end_ps; `as` saturates a huge count, bounded by memory anyway.
         let samples = ((end_ps as f64 - self.start_ps) / period).max(0.0).floor() as u64;
         let words = samples / 32;
-        let mut out: Vec<Vec<u32>> = sigs
-            .iter()
-            .map(|_| Vec::with_capacity(usize::try_from(words).unwrap_or(0)))
-            .collect();
+        if words > MAX_WORDS {
+            return Err(LineError::BadParameter {
+                what: "end_ps (too many samples)",
+                value: end_ps as f64,
+            });
+        }
+        let mut out: Vec<Vec<u32>> = vec![Vec::new(); sigs.len()];
         for w in 0..words {
             let mut acc = vec![0u32; sigs.len()];
             for b in 0..32u64 {
