@@ -199,6 +199,28 @@ fn generator_rejects_inconsistent_lanes() {
         xy2_waveform(&lanes, &short),
         Err(LineError::FramePeriodTooShort { .. })
     ));
+    let same = [
+        Lane {
+            name: roles::X,
+            words: &ok,
+        },
+        Lane {
+            name: roles::X,
+            words: &ok,
+        },
+    ];
+    assert_eq!(
+        xy2_waveform(&same, &t),
+        Err(LineError::BadLaneName { name: "X".into() })
+    );
+    let clk = [Lane {
+        name: roles::CLK,
+        words: &ok,
+    }];
+    assert_eq!(
+        xy2_waveform(&clk, &t),
+        Err(LineError::BadLaneName { name: "CLK".into() })
+    );
     let e = xy2_port_words(&Waveform::new(), &PINS).unwrap_err();
     assert!(matches!(e, LineError::MissingSignal { ref name, .. } if name == "CLK"));
     let clash = PinMap { sync: 0, ..PINS };
@@ -360,4 +382,36 @@ fn uart_framing_error_and_glitch() {
         uart_decode(&Signal::new("u", true), 0.0),
         Err(LineError::BadParameter { .. })
     ));
+}
+
+#[test]
+fn oversampler_rejects_bad_parameters() {
+    let mut w = Waveform::new();
+    w.add(Signal::new("CH1", false)).unwrap();
+    let bad_fs = Oversampler {
+        fs_hz: f64::NAN,
+        start_ps: 0.0,
+    };
+    assert!(matches!(
+        bad_fs.sample(&w, &["CH1"], 1_000),
+        Err(LineError::BadParameter { .. })
+    ));
+    let os = Oversampler {
+        fs_hz: 40e6,
+        start_ps: 0.0,
+    };
+    assert!(matches!(
+        os.sample(&w, &["CH1"], u64::MAX),
+        Err(LineError::BadParameter { .. })
+    ));
+    assert!(matches!(
+        os.sample(&w, &["CH9"], 1_000),
+        Err(LineError::MissingSignal { .. })
+    ));
+    // 800 ns at 40 MHz = 32 samples = exactly one word; one sample less = no word.
+    assert_eq!(os.sample(&w, &["CH1"], 800_000).unwrap(), vec![vec![0u32]]);
+    assert_eq!(
+        os.sample(&w, &["CH1"], 799_999).unwrap(),
+        vec![Vec::<u32>::new()]
+    );
 }

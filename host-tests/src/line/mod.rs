@@ -74,6 +74,11 @@ pub enum LineError {
         /// Frame index where they disagree.
         frame: usize,
     },
+    /// A data lane's name is `CLK`, `SYNC` or used by another lane.
+    BadLaneName {
+        /// The name.
+        name: String,
+    },
     /// A frame word's bit count is not allowed (XY2: 20; XY3: 24 or 32; max 32).
     BadWordLength {
         /// Frame index.
@@ -108,6 +113,12 @@ impl fmt::Display for LineError {
                 write!(
                     f,
                     "data lanes disagree in frame count or length at frame {frame}"
+                )
+            }
+            Self::BadLaneName { name } => {
+                write!(
+                    f,
+                    "data lane name `{name}` clashes with CLK, SYNC or another lane"
                 )
             }
             Self::BadWordLength { frame, bits } => {

@@ -111,6 +111,16 @@ fn generate(lanes: &[Lane<'_>], timing: &FrameTiming, proto: Proto) -> Result<Wa
     if let Some(p) = timing.frame_period_ps {
         positive("frame_period_ps", p)?;
     }
+    for (i, l) in lanes.iter().enumerate() {
+        let taken = lanes
+            .get(..i)
+            .is_some_and(|p| p.iter().any(|o| o.name == l.name));
+        if taken || l.name == roles::CLK || l.name == roles::SYNC {
+            return Err(LineError::BadLaneName {
+                name: l.name.to_owned(),
+            });
+        }
+    }
     let frames = lanes.first().map_or(0, |l| l.words.len());
     if lanes.iter().any(|l| l.words.len() != frames) {
         return Err(LineError::LaneMismatch { frame: frames });
