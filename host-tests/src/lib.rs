@@ -1,3 +1,16 @@
 //! Host-side support for the XY bridge: line-level simulation, VCD I/O and the
 //! `bridge-sim` tool. Integration tests live in `tests/`.
+//!
+//! Layers (all protocol-agnostic; the codecs live in `shared`):
+//! - [`wave`] — the waveform model (named 1-bit signals on a picosecond axis);
+//! - [`vcd_io`] — VCD captures in, VCD files out;
+//! - [`line`] — waveforms <-> the firmware's DMA buffers, and a serial frame generator;
+//! - [`impair`] — reproducible line impairments (rate offset, jitter, skew, noise,
+//!   stuck/broken channels, clock gaps).
 #![deny(missing_docs)]
+#![forbid(unsafe_code)]
+
+pub mod impair;
+pub mod line;
+pub mod vcd_io;
+pub mod wave;

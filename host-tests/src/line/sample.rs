@@ -1,0 +1,202 @@
+//! Input side: waveforms -> the receive DMA buffers (layouts items 1, 2, 3).
+
+use super::{check_bits, positive, roles, signal, LineError};
+use crate::wave::{Ps, Waveform, PS_PER_S};
+
+/// Which GPIO input bit carries which XY2-100 signal (layouts item 1). Bits not mapped
+/// read as 0.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PinMap {
+    /// SYNC bit index (0..15).
+    pub sync: u8,
+    /// X data bit index.
+    pub x: u8,
+    /// Y data bit index.
+    pub y: u8,
+    /// Z data bit index, if wired.
+    pub z: Option<u8>,
+    /// STATUS bit index, if wired.
+    pub status: Option<u8>,
+}
+
+impl PinMap {
+    /// `(bit, role)` pairs of the mapped pins.
+    pub fn pins(&self) -> Vec<(u8, &'static str)> {
+        let mut v = vec![
+            (self.sync, roles::SYNC),
+            (self.x, roles::X),
+            (self.y, roles::Y),
+        ];
+        v.extend(self.z.map(|b| (b, roles::Z)));
+        v.extend(self.status.map(|b| (b, roles::STATUS)));
+        v
+    }
+}
+
+/// XY2-100 in: the port word (`u16`) sampled at every falling edge of `CLK`, one per
+/// bit, as the timer-triggered DMA of IDR does. Signals for unmapped optional pins
+/// (Z, STATUS) need not exist; mapped ones must.
+pub fn xy2_port_words(wave: &Waveform, pins: &PinMap) -> Result<Vec<u16>, LineError> {
+    let pins = pins.pins();
+    let bits: Vec<u8> = pins.iter().map(|&(b, _)| b).collect();
+    check_bits(&bits, 16)?;
+    let clk = signal(wave, roles::CLK)?;
+    let sigs = pins
+        .iter()
+        .map(|&(b, name)| signal(wave, name).map(|s| (b, s)))
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(clk
+        .falling_edges()
+        .map(|t| {
+            sigs.iter()
+                .filter(|(_, s)| s.level_at(t))
+                .fold(0u16, |w, &(b, _)| w | (1u16 << b))
+        })
+        .collect())
+}
+
+/// What an SPI slave does with an incomplete byte when NSS rises.
+///
+/// We could not confirm from RM0433 what the H7 SPI does with a partial data frame at
+/// NSS release (one field report says bits can linger in the shift register). Both are
+/// modelled so decoders can be tested against either; they must use the frame end
+/// positions to cope.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PartialByte {
+    /// The bits are dropped and the next frame starts a fresh byte (default).
+    #[default]
+    Discard,
+    /// The bits stay in the shift register and complete with the next frame's bits.
+    CarryOver,
+}
+
+/// XY3-100 in: what the SPI slaves and the NSS EXTI deliver (layouts item 2).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct SpiCapture {
+    /// Received bytes per data line, in the order of the `lines` argument.
+    pub bytes: Vec<Vec<u8>>,
+    /// At each SYNC (NSS) rising edge: the number of bytes received so far on the first
+    /// line (monotonic, wrapping `u32` like the DMA-derived counter).
+    pub frame_ends: Vec<u32>,
+    /// Bits still in the shift register at the end of the waveform (not delivered).
+    pub pending_bits: u8,
+}
+
+/// Emulates one SPI slave per data line: SCK = `CLK`, NSS = `SYNC` (active low), 8-bit
+/// words, MSB first, sampled on CLK falling edges while NSS is low.
+pub fn xy3_spi(
+    wave: &Waveform,
+    lines: &[&str],
+    partial: PartialByte,
+) -> Result<SpiCapture, LineError> {
+    let clk = signal(wave, roles::CLK)?;
+    let nss = signal(wave, roles::SYNC)?;
+    let data = lines
+        .iter()
+        .map(|&n| signal(wave, n))
+        .collect::<Result<Vec<_>, _>>()?;
+
+    // Events in time order: (time, is_nss_rise). At equal times the clock edge goes
+    // first; it is not sampled anyway since NSS is already high at that instant.
+    let mut events: Vec<(Ps, bool)> = clk.falling_edges().map(|t| (t, false)).collect();
+    events.extend(nss.rising_edges().map(|t| (t, true)));
+    events.sort_unstable();
+
+    let mut cap = SpiCapture {
+        bytes: vec![Vec::new(); data.len()],
+        ..SpiCapture::default()
+    };
+    let mut shift: Vec<u8> = vec![0; data.len()];
+    let mut nbits: u8 = 0;
+    let mut received: u32 = 0;
+    for (t, nss_rise) in events {
+        if nss_rise {
+            cap.frame_ends.push(received);
+            if partial == PartialByte::Discard {
+                nbits = 0;
+                shift.iter_mut().for_each(|s| *s = 0);
+            }
+            continue;
+        }
+        if nss.level_at(t) {
+            continue;
+        }
+        for (reg, line) in shift.iter_mut().zip(&data) {
+            *reg = (*reg << 1) | u8::from(line.level_at(t));
+        }
+        nbits += 1;
+        if nbits == 8 {
+            for (out, reg) in cap.bytes.iter_mut().zip(shift.iter_mut()) {
+                out.push(*reg);
+                *reg = 0;
+            }
+            nbits = 0;
+            received = received.wrapping_add(1);
+        }
+    }
+    cap.pending_bits = nbits;
+    Ok(cap)
+}
+
+/// Upper bound on words per channel from [`Oversampler::sample`] (1 GiB), so a wrong
+/// end time gives an error instead of exhausting memory.
+pub const MAX_WORDS: u64 = 1 << 28;
+
+/// HANS-100 in: a free-running sampling clock (layouts item 3).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Oversampler {
+    /// Sampling frequency in Hz (37.5e6 ..= 50e6 in the firmware; any positive value here).
+    pub fs_hz: f64,
+    /// Time of the first sample instant in picoseconds (the arbitrary phase of the
+    /// receiver's clock relative to the sender's).
+    pub start_ps: f64,
+}
+
+impl Oversampler {
+    /// Samples `channels` at `start_ps + k / fs` for every instant before `end_ps`, all
+    /// channels at the same instants, packed MSB first into `u32` words (bit 31 of word
+    /// 0 is the earliest sample). Like the DMA, only complete words are delivered.
+    pub fn sample(
+        &self,
+        wave: &Waveform,
+        channels: &[&str],
+        end_ps: Ps,
+    ) -> Result<Vec<Vec<u32>>, LineError> {
+        let fs = positive("fs_hz", self.fs_hz)?;
+        if !(self.start_ps.is_finite() && self.start_ps >= 0.0) {
+            return Err(LineError::BadParameter {
+                what: "start_ps",
+                value: self.start_ps,
+            });
+        }
+        let sigs = channels
+            .iter()
+            .map(|&n| signal(wave, n))
+            .collect::<Result<Vec<_>, _>>()?;
+        let period = PS_PER_S / fs;
+        // Whole words before end_ps; `as` saturates a huge count, bounded by memory anyway.
+        let samples = ((end_ps as f64 - self.start_ps) / period).max(0.0).floor() as u64;
+        let words = samples / 32;
+        if words > MAX_WORDS {
+            return Err(LineError::BadParameter {
+                what: "end_ps (too many samples)",
+                value: end_ps as f64,
+            });
+        }
+        let mut out: Vec<Vec<u32>> = vec![Vec::new(); sigs.len()];
+        for w in 0..words {
+            let mut acc = vec![0u32; sigs.len()];
+            for b in 0..32u64 {
+                let k = w * 32 + b;
+                let t = super::ps(self.start_ps + k as f64 * period);
+                for (a, s) in acc.iter_mut().zip(&sigs) {
+                    *a = (*a << 1) | u32::from(s.level_at(t));
+                }
+            }
+            for (o, a) in out.iter_mut().zip(acc) {
+                o.push(a);
+            }
+        }
+        Ok(out)
+    }
+}
