@@ -1,0 +1,74 @@
+//! Thread-mode housekeeping tasks: the supervisor (watchdog, laser gate, health) and
+//! the status LEDs. The timing-critical decode/encode work will run elsewhere (DMA
+//! interrupts and a high-priority `InterruptExecutor`, issue 6), so these tasks may be
+//! slow without affecting the line timing.
+
+use embassy_stm32::gpio::Output;
+use embassy_stm32::peripherals::IWDG1;
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::Peri;
+use embassy_time::{Duration, Ticker};
+
+use crate::channels::{Health, HEALTH};
+
+/// Watchdog timeout. The IWDG runs from the 32 kHz LSI, independent of the main clocks,
+/// so it also catches a dead PLL. 250 ms is long against the 50 ms feed period (a feed
+/// may be late by a few long critical sections or a defmt burst) and short enough that
+/// a stalled executor resets the chip -- and with it, via the board's pull-down, forces
+/// the laser gate off -- well before an operator would notice a frozen head. The LSI
+/// tolerance (RM0433: roughly ±10 % over temperature, DS12110) keeps the worst case
+/// above 200 ms.
+const WATCHDOG_TIMEOUT_US: u32 = 250_000;
+
+/// How often the supervisor runs and feeds the watchdog.
+const SUPERVISOR_PERIOD: Duration = Duration::from_millis(50);
+
+/// Owns the watchdog and the laser gate. Runs in the thread-mode executor, so if that
+/// executor stalls (a task that never yields, a deadlock) the watchdog is no longer fed
+/// and resets the chip.
+#[embassy_executor::task]
+pub async fn supervisor(
+    iwdg: Peri<'static, IWDG1>,
+    mut laser_gate: Output<'static>,
+    fault_at_boot: bool,
+) {
+    let mut watchdog = IndependentWatchdog::new(iwdg, WATCHDOG_TIMEOUT_US);
+    watchdog.unleash();
+    defmt::info!("watchdog running, timeout {} us", WATCHDOG_TIMEOUT_US);
+
+    let health = Health {
+        input_valid: false,
+        fault: fault_at_boot,
+    };
+    HEALTH.sender().send(health);
+
+    let mut ticker = Ticker::every(SUPERVISOR_PERIOD);
+    loop {
+        // The laser gate stays off until the bridge reports valid input frames; the
+        // permit from the input decoders is wired in issue 6. Re-asserted every period
+        // so no other code path can leave it on.
+        laser_gate.set_low();
+        watchdog.pet();
+        ticker.next().await;
+    }
+}
+
+/// Green LED blinks at 1 Hz while the thread executor runs; yellow shows "no valid
+/// input" (laser gate held off); red shows a latched fault.
+#[embassy_executor::task]
+pub async fn leds(
+    mut green: Output<'static>,
+    mut yellow: Output<'static>,
+    mut red: Output<'static>,
+) {
+    let mut health = HEALTH.anon_receiver();
+    let mut ticker = Ticker::every(Duration::from_millis(500));
+    loop {
+        green.toggle();
+        if let Some(h) = health.try_changed() {
+            yellow.set_level((!h.input_valid).into());
+            red.set_level(h.fault.into());
+        }
+        ticker.next().await;
+    }
+}
