@@ -48,7 +48,7 @@
 //! PLL3 stays off (nothing needs it yet; PLL3_Q /10 of a 480 MHz VCO would give USB's
 //! 48 MHz if a USB console is added).
 //!
-//! # Power (RM0433 §6.4 "Power supply")
+//! # Power (RM0433 §6 "Power control")
 //! The STM32H743 (RM0433 family) has no SMPS: VCORE comes from the internal LDO (the
 //! NUCLEO-H743ZI2 wiring) or from an external supply with the LDO bypassed. embassy-stm32
 //! writes PWR_CR3 = LDO for this family (and exposes no `SupplyConfig` here). PWR_CR3's
@@ -67,7 +67,7 @@ use embassy_stm32::Peri;
 
 #[cfg(feature = "board-custom-smps")]
 compile_error!(
-    "board-custom-smps: the STM32H743 has no SMPS (RM0433 §6.4; LDO or LDO bypass only). \
+    "board-custom-smps: the STM32H743 has no SMPS (RM0433 §6; LDO or LDO bypass only). \
      An SMPS board needs an SMPS part (e.g. STM32H725/735/747/7A3): change the chip feature \
      of embassy-stm32 and set `config.rcc.supply_config` in board.rs to match the board."
 );
@@ -75,7 +75,7 @@ compile_error!(
 /// Laser gate: port F bit 13 (`PF13`); `init` takes `p.PF13` for the same pin.
 const LASER_GATE_PIN: usize = 13;
 
-/// Silicon revision, from DBGMCU_IDC.REV_ID (RM0433 §60.5.8).
+/// Silicon revision, from DBGMCU_IDC.REV_ID (RM0433, debug support chapter).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum Silicon {
     /// Revision V (REV_ID 0x2003): VOS0 allowed, 480 MHz.
@@ -84,8 +84,9 @@ pub enum Silicon {
     Other(u16),
 }
 
-/// Why the chip last reset, from RCC_RSR (RM0433 §8.7.38). Several flags can be set at
-/// once (a power-on also sets the pin and BOR flags); the most specific one wins.
+/// Why the chip last reset, from RCC_RSR (RM0433 §8, reset status register). Several
+/// flags can be set at once (a power-on also sets the pin and BOR flags); the most
+/// specific one wins.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum ResetCause {
     /// The independent watchdog expired: the firmware stalled.
@@ -145,7 +146,7 @@ pub fn init() -> Board {
     let p = embassy_stm32::init(clock_config(silicon));
 
     // SRAM1..3 (D2 domain) hold the DMA1/DMA2 rings; their clocks are off after reset
-    // and embassy-stm32 does not enable them (RM0433 §8.5.9, RCC_AHB2ENR).
+    // and embassy-stm32 does not enable them (RM0433 §8, RCC_AHB2ENR).
     pac::RCC.ahb2enr().modify(|w| {
         w.set_sram1en(true);
         w.set_sram2en(true);
@@ -170,11 +171,12 @@ pub fn init() -> Board {
 
 /// Drives the laser gate low with raw register writes, before clocks are set up. At
 /// reset the pin is a floating input held off by the board's pull-down; this makes it
-/// an actively driven low from the first microseconds (RM0433 §11.4 GPIO registers).
+/// an actively driven low from the first microseconds (RM0433 §11: GPIO_BSRR first, then
+/// GPIO_MODER, so the pin never drives high).
 fn laser_gate_off_early() {
     pac::RCC.ahb4enr().modify(|w| w.set_gpiofen(true));
     // Read back so the clock enable has taken effect before the port is written
-    // (RM0433 §8.5.10: a delay after enabling a peripheral clock).
+    // (RM0433 §8: a short delay is needed after enabling a peripheral clock).
     let _ = pac::RCC.ahb4enr().read();
     pac::GPIOF.bsrr().write(|w| w.set_br(LASER_GATE_PIN, true));
     pac::GPIOF

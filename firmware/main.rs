@@ -35,6 +35,7 @@ async fn main(spawner: Spawner) {
         defmt::error!("last reset was a watchdog reset: the firmware stalled");
     }
 
+    // Each task is spawned once from a pool of one, so the tokens cannot be exhausted.
     spawner.spawn(tasks::supervisor(board.iwdg, board.laser_gate, fault).unwrap());
     spawner.spawn(tasks::leds(board.led_green, board.led_yellow, board.led_red).unwrap());
 }

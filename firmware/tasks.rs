@@ -15,9 +15,9 @@ use crate::channels::{Health, HEALTH};
 /// so it also catches a dead PLL. 250 ms is long against the 50 ms feed period (a feed
 /// may be late by a few long critical sections or a defmt burst) and short enough that
 /// a stalled executor resets the chip -- and with it, via the board's pull-down, forces
-/// the laser gate off -- well before an operator would notice a frozen head. The LSI
-/// tolerance (RM0433: roughly ±10 % over temperature, DS12110) keeps the worst case
-/// above 200 ms.
+/// the laser gate off -- well before an operator would notice a frozen head. The LSI is
+/// only roughly 32 kHz (DS12110 gives a few percent of spread over temperature and
+/// supply), so the real timeout moves by that much; it stays far above 50 ms.
 const WATCHDOG_TIMEOUT_US: u32 = 250_000;
 
 /// How often the supervisor runs and feeds the watchdog.
