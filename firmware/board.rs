@@ -57,7 +57,7 @@
 
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::pac;
-use embassy_stm32::peripherals::IWDG1;
+use embassy_stm32::peripherals::{DMA1_CH0, IWDG1, PA15, PC10, PC12, SPI3};
 use embassy_stm32::rcc::{
     AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllDiv, PllMul, PllPreDiv, PllSource, Sysclk,
     VoltageScale,
@@ -130,6 +130,23 @@ pub struct Board {
     pub silicon: Silicon,
     /// Core clock in Hz.
     pub core_hz: u32,
+    /// Controller-side pair 3 (XY3 X / HANS CH3) receiver resources.
+    pub pair3_rx: Pair3Rx,
+}
+
+/// SPI3 with its pins and DMA stream: receives controller-side DB25 pair 3 (`layouts.md`
+/// §2/§3; README-firmware.md allocation table).
+pub struct Pair3Rx {
+    /// SPI3 (32-bit capable).
+    pub spi: Peri<'static, SPI3>,
+    /// SCK from the shared SCK bus (AF6).
+    pub sck: Peri<'static, PC10>,
+    /// MOSI from pair 3 (AF6).
+    pub mosi: Peri<'static, PC12>,
+    /// NSS from pair 1 (XY3 SYNC, AF6).
+    pub nss: Peri<'static, PA15>,
+    /// DMA1 stream 0.
+    pub dma: Peri<'static, DMA1_CH0>,
 }
 
 /// Brings the board up. Order matters:
@@ -166,6 +183,13 @@ pub fn init() -> Board {
         reset_cause,
         silicon,
         core_hz: core_hz(silicon),
+        pair3_rx: Pair3Rx {
+            spi: p.SPI3,
+            sck: p.PC10,
+            mosi: p.PC12,
+            nss: p.PA15,
+            dma: p.DMA1_CH0,
+        },
     }
 }
 

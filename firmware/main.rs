@@ -9,6 +9,7 @@
 
 mod board;
 mod channels;
+mod drivers;
 mod tasks;
 
 use embassy_executor::Spawner;
@@ -38,4 +39,12 @@ async fn main(spawner: Spawner) {
     // Each task is spawned once from a pool of one, so the tokens cannot be exhausted.
     spawner.spawn(tasks::supervisor(board.iwdg, board.laser_gate, fault).unwrap());
     spawner.spawn(tasks::leds(board.led_green, board.led_yellow, board.led_red).unwrap());
+    if PROBE_PAIR3 {
+        spawner.spawn(tasks::pair3_probe(board.pair3_rx).unwrap());
+    }
 }
+
+/// Bring-up configuration: run the line probe on controller-side pair 3 (XY3-100 X,
+/// framed by SYNC on NSS), logging throughput and receive errors. Replaced by the
+/// runtime role configuration in issue 6.
+const PROBE_PAIR3: bool = true;

@@ -3,13 +3,31 @@
 //! interrupts and a high-priority `InterruptExecutor`, issue 6), so these tasks may be
 //! slow without affecting the line timing.
 
+use core::mem::MaybeUninit;
+use core::ptr::addr_of_mut;
 use embassy_stm32::gpio::Output;
 use embassy_stm32::peripherals::IWDG1;
 use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::Peri;
-use embassy_time::{Duration, Ticker};
 
+use embassy_stm32::{bind_interrupts, dma, peripherals};
+use embassy_time::{Duration, Instant, Ticker};
+
+use crate::board::Pair3Rx;
 use crate::channels::{Health, HEALTH};
+use crate::drivers::spi_slave_rx::SpiSlaveRx;
+
+bind_interrupts!(struct ProbeIrqs {
+    DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+});
+
+/// Probe ring length in bytes: 2 halves of 512, i.e. 1.28 ms of XY3-100 at 3.2 MHz.
+const PROBE_RING_LEN: usize = 1024;
+
+/// The probe's DMA ring, in SRAM1 (reachable by DMA1; `.sram1` is NOLOAD, hence
+/// `MaybeUninit`, written before use).
+#[link_section = ".sram1"]
+static mut PROBE_RING: MaybeUninit<[u8; PROBE_RING_LEN]> = MaybeUninit::uninit();
 
 /// Watchdog timeout. The IWDG runs from the 32 kHz LSI, independent of the main clocks,
 /// so it also catches a dead PLL. 250 ms is long against the 50 ms feed period (a feed
@@ -70,5 +88,41 @@ pub async fn leds(
             red.set_level(h.fault.into());
         }
         ticker.next().await;
+    }
+}
+
+/// Line probe for bring-up: receives controller-side pair 3 as an XY3-100 data line
+/// (SPI3 slave, 8-bit words, sampled on the falling CLK edge, SYNC = NSS) and logs once
+/// a second how many bytes arrived and whether any were lost.
+#[embassy_executor::task]
+pub async fn pair3_probe(r: Pair3Rx) {
+    // SAFETY: this task is spawned at most once (pool size 1), so this is the only
+    // reference to PROBE_RING ever created.
+    let ring: &'static mut [u8; PROBE_RING_LEN] =
+        unsafe { (*addr_of_mut!(PROBE_RING)).write([0; PROBE_RING_LEN]) };
+    let mut rx = match SpiSlaveRx::new(r.spi, r.sck, r.mosi, Some(r.nss), r.dma, ProbeIrqs, ring) {
+        Ok(rx) => rx,
+        Err(e) => {
+            defmt::error!("pair 3 probe: {}", e);
+            return;
+        }
+    };
+    defmt::info!("pair 3 probe: SPI3 slave receiving (XY3-100 X)");
+    let mut chunk = [0u8; PROBE_RING_LEN / 2];
+    let mut bytes: u32 = 0;
+    let mut errors: u32 = 0;
+    let mut last_report = Instant::now();
+    loop {
+        match rx.read_exact(&mut chunk).await {
+            Ok(()) => bytes = bytes.wrapping_add(chunk.len() as u32),
+            Err(e) => {
+                errors = errors.wrapping_add(1);
+                defmt::warn!("pair 3 probe: {}", e);
+            }
+        }
+        if last_report.elapsed() >= Duration::from_secs(1) {
+            defmt::info!("pair 3 probe: {} bytes, {} errors", bytes, errors);
+            last_report = Instant::now();
+        }
     }
 }
