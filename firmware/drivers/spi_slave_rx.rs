@@ -14,11 +14,12 @@
 //!    word; §50.4, FIFO threshold), RXDMAEN = 1 (§50.4, DMA: the Rx DMA request is
 //!    enabled before the stream and before SPE).
 //! 3. CFG2: MASTER = 0 (slave), COMM = simplex receiver (only MOSI is used),
-//!    CPOL = 0 / CPHA = 1 (§50.4, clock phase and polarity): sample on the falling SCK edge, which XY3-100
-//!    needs (`layouts.md` §2) and HANS-100's free-running oversampling clock does not
-//!    care about; MSB first; and either hardware SS with active-low polarity
-//!    (XY3-100: SYNC is the frame's chip select) or software SS held active (SSM = 1,
-//!    SSI = 0; HANS-100: a free-running stream) (§50.4, slave select management).
+//!    CPOL = 0 / CPHA = 1 (§50.4, clock phase and polarity): sample on the falling SCK
+//!    edge, which XY3-100 needs (`layouts.md` §2) and HANS-100's free-running
+//!    oversampling clock does not care about; MSB first; and either hardware SS with
+//!    active-low polarity (XY3-100: SYNC is the frame's chip select) or software SS
+//!    held active (SSM = 1, SSI = 0; HANS-100: a free-running stream) (§50.4, slave
+//!    select management).
 //! 4. CR2.TSIZE = 0: endless transfer, the SPI never ends a transaction by itself.
 //! 5. DMA stream started (circular, half/complete interrupts), then SPE = 1.
 //!
