@@ -29,7 +29,8 @@ pub struct Health {
     pub fault: bool,
 }
 
-/// Receivers that read [`HEALTH`] with a subscription: the LED task.
+/// Subscribed receivers of [`HEALTH`]. The LED task polls through an anonymous
+/// receiver, which needs no slot; one slot is left for a task that awaits changes.
 const HEALTH_RECEIVERS: usize = 1;
 
 /// Current [`Health`], published by the supervisor.
