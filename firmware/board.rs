@@ -1,0 +1,301 @@
+//! The reference board: NUCLEO-H743ZI2 (STM32H743ZI) plus RS-422/RS-485 transceivers and
+//! two DB25 connectors (controller side, head side). Everything that ties the firmware
+//! to this particular board lives here: power supply, clock tree, the early fail-safe
+//! state of the laser gate, the pin map and the boot diagnostics.
+//!
+//! # Pin map
+//! The full signal / DB25 / transceiver / pin / peripheral / DMA table is in
+//! `firmware/README-firmware.md`. One DB25 pair feeds every MCU pin one of its roles
+//! needs (receiver outputs fan out to several inputs; outputs that several roles share
+//! go through a 2:1 mux or share one pin with different alternate functions), so the
+//! protocol per side is configuration, not a rebuild. Pins taken here:
+//! * `PF13` laser gate (interlock): high = laser may fire. External pull-down, so it is
+//!   off in reset; [`init`] drives it low before anything else ([`LASER_GATE_PIN`]).
+//! * `PF11` head-side line-driver enable (pulled down, off until an output runs);
+//!   `PF14` SCK-bus buffer enable (XY3 CLK from pair 2); `PF15` head-driver source
+//!   select (GPIO waveform / HANS serial) -- taken by the output drivers (issue 6).
+//! * NUCLEO LEDs: `PB0` LD1 green = heartbeat, `PE1` LD2 yellow = no valid input
+//!   (laser gate held off), `PB14` LD3 red = fault latched (also after a watchdog reset).
+//!
+//! # Clock tree (RM0433 §8 "Reset and clock control")
+//! ```text
+//! HSE 8 MHz, bypass: the NUCLEO's ST-LINK drives its MCO into PH0 (no crystal fitted)
+//!   every PLL: DIVM = 4 -> 2 MHz reference (PLL input range 2..4 MHz)
+//!   PLL1  x480 -> VCO 960 MHz (wide range)   P /2 -> 480 MHz = sys_ck     (rev V, VOS0)
+//!         x400 -> VCO 800 MHz                P /2 -> 400 MHz = sys_ck     (rev Y, VOS1)
+//!   PLL2  x300 -> VCO 600 MHz (wide range)   P /6 -> 100 MHz  SPI1/2/3 + SAI1/2/3 kernel
+//!                                            Q /6 -> 100 MHz  SPI4/5/6 + all U(S)ART kernel
+//! sys_ck 480 -> D1CPRE /1 -> CPU 480 MHz
+//!            -> HPRE /2   -> AHB1..4 (hclk) 240 MHz (max 240 in VOS0)
+//!            -> D2PPRE1 /2 -> APB1 120 MHz; timers on APB1 (TIM2..7, 12..14) 240 MHz
+//!            -> D2PPRE2 /2 -> APB2 120 MHz; timers on APB2 (TIM1, 8, 15..17)  240 MHz
+//!            -> D1PPRE /2  -> APB3 120 MHz;  D3PPRE /2 -> APB4 120 MHz
+//! (rev Y: CPU 400, AHB 200, APBx 100, timers 200 MHz.)
+//! ```
+//! Why PLL2 feeds every serial kernel clock: the protocol timing must not depend on the
+//! silicon revision (480 or 400 MHz core), and 100 MHz divides to every rate we need
+//! exactly:
+//! * HANS-100 out, 12.5 MHz: SAI/SPI master bit clock 100 MHz / 8.
+//! * HANS-100 in oversampling clock fs (layouts.md §3): TIM3 CH1 toggling from the
+//!   240 MHz timer clock, 240 / 6 = **40.000 MHz** (rev Y: 200 / 5 = 40.000 MHz), ratio
+//!   fs / 12.5 MHz = 3.2. Alternatives, if a head needs another rate: 50 MHz (ratio 4)
+//!   = an SPI master clocked from PLL2_P 100 MHz with MBR /2; 37.5 MHz (ratio 3) = PLL2_Q
+//!   changed to /8 (75 MHz) and an SPI4/5 master with MBR /2. All exact: the decoder
+//!   gets the exact ratio.
+//! * Backchannel UART (115200 .. 921600 baud): USART kernel 100 MHz, error < 0.01 %
+//!   (921600 with 8x oversampling: 100e6 * 2 / 921600 = 217.01).
+//!
+//! PLL3 stays off (nothing needs it yet; PLL3_Q /10 of a 480 MHz VCO would give USB's
+//! 48 MHz if a USB console is added).
+//!
+//! # Power (RM0433 §6 "Power control")
+//! The STM32H743 (RM0433 family) has no SMPS: VCORE comes from the internal LDO (the
+//! NUCLEO-H743ZI2 wiring) or from an external supply with the LDO bypassed. embassy-stm32
+//! writes PWR_CR3 = LDO for this family (and exposes no `SupplyConfig` here). PWR_CR3's
+//! supply bits are write-once per power-on: a mismatch with the board hangs at
+//! ACTVOSRDY. See README-firmware.md "Troubleshooting" for recovery.
+
+use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::pac;
+use embassy_stm32::peripherals::{DMA1_CH0, IWDG1, PA15, PC10, PC12, SPI3};
+use embassy_stm32::rcc::{
+    AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllDiv, PllMul, PllPreDiv, PllSource, Sysclk,
+    VoltageScale,
+};
+use embassy_stm32::time::Hertz;
+use embassy_stm32::Peri;
+
+#[cfg(feature = "board-custom-smps")]
+compile_error!(
+    "board-custom-smps: the STM32H743 has no SMPS (RM0433 §6; LDO or LDO bypass only). \
+     An SMPS board needs an SMPS part (e.g. STM32H725/735/747/7A3): change the chip feature \
+     of embassy-stm32 and set `config.rcc.supply_config` in board.rs to match the board."
+);
+
+/// Laser gate: port F bit 13 (`PF13`); `init` takes `p.PF13` for the same pin.
+const LASER_GATE_PIN: usize = 13;
+
+/// Silicon revision, from DBGMCU_IDC.REV_ID (RM0433, debug support chapter).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum Silicon {
+    /// Revision V (REV_ID 0x2003): VOS0 allowed, 480 MHz.
+    RevV,
+    /// Any other REV_ID (revision Y is 0x1003): limited to VOS1, 400 MHz.
+    Other(u16),
+}
+
+/// Why the chip last reset, from RCC_RSR (RM0433 §8, reset status register). Several
+/// flags can be set at once (a power-on also sets the pin and BOR flags); the most
+/// specific one wins.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum ResetCause {
+    /// The independent watchdog expired: the firmware stalled.
+    IndependentWatchdog,
+    /// The window watchdog fired.
+    WindowWatchdog,
+    /// Software reset (SYSRESETREQ, e.g. from the debugger or a panic handler).
+    Software,
+    /// Power-on / power-down reset.
+    PowerOn,
+    /// Brown-out reset.
+    BrownOut,
+    /// NRST pin (reset button, probe).
+    Pin,
+    /// Illegal low-power entry, or no flag set.
+    Other(u32),
+}
+
+impl ResetCause {
+    /// True if the last reset shows the firmware itself failed.
+    pub fn is_fault(self) -> bool {
+        matches!(self, Self::IndependentWatchdog | Self::WindowWatchdog)
+    }
+}
+
+/// What [`init`] hands to `main`.
+pub struct Board {
+    /// Laser gate output, driven low (off).
+    pub laser_gate: Output<'static>,
+    /// LD1 green.
+    pub led_green: Output<'static>,
+    /// LD2 yellow.
+    pub led_yellow: Output<'static>,
+    /// LD3 red.
+    pub led_red: Output<'static>,
+    /// The independent watchdog, for the supervisor task.
+    pub iwdg: Peri<'static, IWDG1>,
+    /// Reset cause read before the flags were cleared.
+    pub reset_cause: ResetCause,
+    /// Silicon revision and the core clock chosen for it.
+    pub silicon: Silicon,
+    /// Core clock in Hz.
+    pub core_hz: u32,
+    /// Controller-side pair 3 (XY3 X / HANS CH3) receiver resources.
+    pub pair3_rx: Pair3Rx,
+}
+
+/// SPI3 with its pins and DMA stream: receives controller-side DB25 pair 3 (`layouts.md`
+/// §2/§3; README-firmware.md allocation table).
+pub struct Pair3Rx {
+    /// SPI3 (32-bit capable).
+    pub spi: Peri<'static, SPI3>,
+    /// SCK from the shared SCK bus (AF6).
+    pub sck: Peri<'static, PC10>,
+    /// MOSI from pair 3 (AF6).
+    pub mosi: Peri<'static, PC12>,
+    /// NSS from pair 1 (XY3 SYNC, AF6).
+    pub nss: Peri<'static, PA15>,
+    /// DMA1 stream 0.
+    pub dma: Peri<'static, DMA1_CH0>,
+}
+
+/// Brings the board up. Order matters:
+/// 1. laser gate off (before anything that can take time or fail),
+/// 2. reset cause captured and cleared,
+/// 3. power, clocks (embassy), SRAM1..3 clocks, I-cache, debug freeze of the watchdog.
+pub fn init() -> Board {
+    laser_gate_off_early();
+    let reset_cause = take_reset_cause();
+    let silicon = match pac::DBGMCU.idc().read().rev_id() {
+        0x2003 => Silicon::RevV,
+        other => Silicon::Other(other),
+    };
+    let p = embassy_stm32::init(clock_config(silicon));
+
+    // SRAM1..3 (D2 domain) hold the DMA1/DMA2 rings; their clocks are off after reset
+    // and embassy-stm32 does not enable them (RM0433 §8, RCC_AHB2ENR).
+    pac::RCC.ahb2enr().modify(|w| {
+        w.set_sram1en(true);
+        w.set_sram2en(true);
+        w.set_sram3en(true);
+    });
+    // Halted at a breakpoint the watchdog would reset the chip under the debugger.
+    pac::DBGMCU.apb4fzr1().modify(|w| w.set_iwdg1(true));
+    enable_icache();
+
+    Board {
+        // `Output::new` writes the level before switching the mode: no glitch high.
+        laser_gate: Output::new(p.PF13, Level::Low, Speed::Low),
+        led_green: Output::new(p.PB0, Level::Low, Speed::Low),
+        led_yellow: Output::new(p.PE1, Level::Low, Speed::Low),
+        led_red: Output::new(p.PB14, Level::Low, Speed::Low),
+        iwdg: p.IWDG1,
+        reset_cause,
+        silicon,
+        core_hz: core_hz(silicon),
+        pair3_rx: Pair3Rx {
+            spi: p.SPI3,
+            sck: p.PC10,
+            mosi: p.PC12,
+            nss: p.PA15,
+            dma: p.DMA1_CH0,
+        },
+    }
+}
+
+/// Drives the laser gate low with raw register writes, before clocks are set up. At
+/// reset the pin is a floating input held off by the board's pull-down; this makes it
+/// an actively driven low from the first microseconds (RM0433 §11: GPIO_BSRR first, then
+/// GPIO_MODER, so the pin never drives high).
+fn laser_gate_off_early() {
+    pac::RCC.ahb4enr().modify(|w| w.set_gpiofen(true));
+    // Read back so the clock enable has taken effect before the port is written
+    // (RM0433 §8: a short delay is needed after enabling a peripheral clock).
+    let _ = pac::RCC.ahb4enr().read();
+    pac::GPIOF.bsrr().write(|w| w.set_br(LASER_GATE_PIN, true));
+    pac::GPIOF
+        .moder()
+        .modify(|w| w.set_moder(LASER_GATE_PIN, pac::gpio::vals::Moder::OUTPUT));
+}
+
+/// Reads RCC_RSR and clears it (RMVF) so the next boot sees only its own cause.
+fn take_reset_cause() -> ResetCause {
+    let rsr = pac::RCC.rsr().read();
+    pac::RCC.rsr().modify(|w| w.set_rmvf(true));
+    if rsr.iwdg1rstf() {
+        ResetCause::IndependentWatchdog
+    } else if rsr.wwdg1rstf() {
+        ResetCause::WindowWatchdog
+    } else if rsr.sftrstf() {
+        ResetCause::Software
+    } else if rsr.porrstf() {
+        ResetCause::PowerOn
+    } else if rsr.borrstf() {
+        ResetCause::BrownOut
+    } else if rsr.pinrstf() {
+        ResetCause::Pin
+    } else {
+        ResetCause::Other(rsr.0)
+    }
+}
+
+/// Core clock for a silicon revision: 480 MHz needs VOS0, which only revision V allows
+/// (DS12110 / errata ES0392); everything else runs at 400 MHz in VOS1.
+fn core_hz(silicon: Silicon) -> u32 {
+    match silicon {
+        Silicon::RevV => 480_000_000,
+        Silicon::Other(_) => 400_000_000,
+    }
+}
+
+/// The clock tree described in the module docs.
+fn clock_config(silicon: Silicon) -> embassy_stm32::Config {
+    let mut config = embassy_stm32::Config::default();
+    let rcc = &mut config.rcc;
+    rcc.hse = Some(Hse {
+        freq: Hertz(8_000_000),
+        mode: HseMode::Bypass,
+    });
+    // HSI stays on: it clocks the PLL setup and is the fallback if HSE fails.
+    rcc.sys = Sysclk::PLL1_P;
+    let (mul, scale) = match silicon {
+        Silicon::RevV => (PllMul::MUL480, VoltageScale::Scale0),
+        Silicon::Other(_) => (PllMul::MUL400, VoltageScale::Scale1),
+    };
+    rcc.voltage_scale = scale;
+    rcc.pll1 = Some(Pll {
+        source: PllSource::HSE,
+        prediv: PllPreDiv::DIV4,
+        mul,
+        fracn: None,
+        divp: Some(PllDiv::DIV2),
+        divq: None,
+        divr: None,
+    });
+    rcc.pll2 = Some(Pll {
+        source: PllSource::HSE,
+        prediv: PllPreDiv::DIV4,
+        mul: PllMul::MUL300,
+        fracn: None,
+        divp: Some(PllDiv::DIV6),
+        divq: Some(PllDiv::DIV6),
+        divr: None,
+    });
+    rcc.d1c_pre = AHBPrescaler::DIV1;
+    rcc.ahb_pre = AHBPrescaler::DIV2;
+    rcc.apb1_pre = APBPrescaler::DIV2;
+    rcc.apb2_pre = APBPrescaler::DIV2;
+    rcc.apb3_pre = APBPrescaler::DIV2;
+    rcc.apb4_pre = APBPrescaler::DIV2;
+
+    use embassy_stm32::rcc::mux;
+    rcc.mux.spi123sel = mux::Saisel::PLL2_P;
+    rcc.mux.sai1sel = mux::Saisel::PLL2_P;
+    rcc.mux.sai23sel = mux::Saisel::PLL2_P;
+    rcc.mux.spi45sel = mux::Spi45sel::PLL2_Q;
+    rcc.mux.spi6sel = mux::Spi6sel::PLL2_Q;
+    rcc.mux.usart16910sel = mux::Usart16910sel::PLL2_Q;
+    rcc.mux.usart234578sel = mux::Usart234578sel::PLL2_Q;
+    config
+}
+
+/// Enables the Cortex-M7 instruction cache. The data cache stays off on purpose: DMA
+/// rings in SRAM1..4 then need no clean/invalidate maintenance, and the per-frame hot
+/// state lives in DTCM, which is zero-wait-state and never cached anyway.
+fn enable_icache() {
+    // SAFETY: nothing else owns SCB at this point (embassy does not take the core
+    // peripherals); the I-cache enable sequence (invalidate, enable, barriers) is done
+    // by `enable_icache`.
+    let mut cp = unsafe { cortex_m::Peripherals::steal() };
+    cp.SCB.enable_icache();
+}
