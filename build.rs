@@ -1,4 +1,4 @@
-//! Puts `firmware/memory.x` on the linker path and adds the Cortex-M link scripts for the
+//! Puts `memory.x` on the linker path and adds the Cortex-M link scripts for the
 //! firmware's binaries only. Host builds of the workspace never run this script (it
 //! belongs to the root firmware package), so they get no embedded link flags.
 
@@ -6,12 +6,9 @@ use std::{env, fs, path::PathBuf};
 
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    // The map lives in `firmware/`, not the workspace root: the linker runs in the
-    // workspace root and looks for `memory.x` there first, which would hand the STM32
-    // map to every other embedded member (`cm7`, built for QEMU's mps2-an500).
-    fs::copy("firmware/memory.x", out.join("memory.x")).expect("copy memory.x to OUT_DIR");
+    fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x to OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
-    println!("cargo:rerun-if-changed=firmware/memory.x");
+    println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed=build.rs");
 
     // `link.x` (cortex-m-rt) includes memory.x; `defmt.x` places the defmt tables.

@@ -97,6 +97,10 @@ fn with_packages<'a>(mut args: Vec<&'a str>, packages: &[&'a str]) -> Vec<&'a st
 fn test_all() -> Result {
     let started = Instant::now();
     cargo(&["fmt", "--all", "--", "--check"])?;
+    // `cm7` and `fuzz` are workspaces of their own, which `--all` does not reach.
+    for manifest in [qemu::CM7_MANIFEST, "fuzz/Cargo.toml"] {
+        cargo(&["fmt", "--manifest-path", manifest, "--", "--check"])?;
+    }
 
     let host_clippy = with_packages(
         vec!["clippy", "--target", HOST, "--all-targets"],
@@ -107,7 +111,11 @@ fn test_all() -> Result {
     cargo(&[&mcu_clippy[..], &["--bins"], DENY_WARNINGS].concat())?;
     let shared = ["-p", "xy-bridge-shared", "--features", "defmt"];
     cargo(&[&mcu_clippy[..], &shared, DENY_WARNINGS].concat())?;
-    let cm7 = ["-p", "xy-bridge-cm7", "--lib", "--bins"];
+    let cm7 = [
+        &["--manifest-path", qemu::CM7_MANIFEST][..],
+        &["--lib", "--bins"],
+    ]
+    .concat();
     cargo(&[&mcu_clippy[..], &cm7, DENY_WARNINGS].concat())?;
 
     let host_test = with_packages(vec!["test", "--release", "--target", HOST], HOST_PACKAGES);

@@ -11,10 +11,20 @@ use std::time::{Duration, Instant};
 /// Longest a QEMU run may take (the whole suite takes well under a second today).
 const TIMEOUT: Duration = Duration::from_secs(60);
 
+/// `cm7` is its own workspace (see the root `Cargo.toml`), built in place.
+pub const CM7_MANIFEST: &str = "cm7/Cargo.toml";
+
 /// Builds `cm7` and the plugin, runs the tests and the bench, prints both results.
 pub fn run() -> Result {
-    cargo(&["build", "--release", "--target", MCU, "-p", "xy-bridge-cm7"])?;
-    let elves = root().join("target").join(MCU).join("release");
+    cargo(&[
+        "build",
+        "--release",
+        "--target",
+        MCU,
+        "--manifest-path",
+        CM7_MANIFEST,
+    ])?;
+    let elves = root().join("cm7").join("target").join(MCU).join("release");
     let plugin = build_plugin()?;
 
     let tests = qemu(&elves.join("tests"), &[], "tests")?;
