@@ -404,6 +404,55 @@ pub struct HeadStatus {
     pub identification: Identification,
 }
 
+/// A physical input line of a receiver, for fault reports and per-line counters.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Line {
+    /// An XY2-100 / XY3-100 data line (one per axis).
+    Axis(Axis),
+    /// HANS-100 channel 1..=5.
+    HansChannel(u8),
+    /// The frame structure as a whole (XY2-100 SYNC, XY3-100 SYNC/CLK, a HANS-100 vote).
+    Framing,
+    /// The head's status line (XY2-100 STATUS, HANS-100 STATUS).
+    Status,
+    /// The XY3-100 RS485 backchannel.
+    Backchannel,
+}
+
+/// What went wrong on a line. Receivers report these; the bridge counts them per line
+/// and never forwards the frame they concern.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FaultKind {
+    /// A frame failed its protocol check (parity, complement, fixed bits, header).
+    CheckFailed,
+    /// A frame was truncated, overlong or misaligned (framing).
+    Framing,
+    /// The receiver lost alignment and found it again.
+    Resync,
+    /// Input was discarded without being decoded (overrun, garbage).
+    Dropped,
+    /// Channels that passed their checks disagreed (HANS-100 super mode), or a vote
+    /// had no majority; the frame was rejected.
+    Disagree,
+}
+
+/// What a line-level receiver reports, protocol-neutral: the bridge's input.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum LineEvent {
+    /// One frame period whose every present channel passed its checks.
+    Frame(ForwardFrame),
+    /// A fault on a line; the affected frame period is not forwarded.
+    Fault {
+        /// Where.
+        line: Line,
+        /// What.
+        kind: FaultKind,
+    },
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

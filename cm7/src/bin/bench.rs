@@ -1,6 +1,6 @@
-//! Instruction-count bench: for each workload of [`cm7::workloads::ALL`] it prints
-//! `BENCH <name> <frames>` and then runs the workload between calls to `bench_start`
-//! and `bench_end`. The QEMU plugin (`plugin/insn_count.c`) counts the guest
+//! Instruction-count bench: for each workload of [`cm7::workloads::GROUPS`] it prints
+//! `BENCH <name> <frames>` and then runs the workload, which brackets its measured part
+//! with calls to `bench_start` and `bench_end`. The QEMU plugin (`plugin/insn_count.c`) counts the guest
 //! instructions executed from the entry of one to the entry of the other and prints
 //! one count per window; `cargo xtask test` pairs the n-th count with the n-th name.
 //!
@@ -21,27 +21,25 @@ static WINDOWS: AtomicU32 = AtomicU32::new(0);
 /// the linker cannot fold the two into one address (the plugin finds them by address).
 #[inline(never)]
 #[no_mangle]
-pub extern "C" fn bench_start() {
+extern "C" fn bench_start() {
     WINDOWS.fetch_add(1, Ordering::Relaxed);
 }
 
 /// Window end marker (see [`bench_start`]).
 #[inline(never)]
 #[no_mangle]
-pub extern "C" fn bench_end() {
+extern "C" fn bench_end() {
     black_box(WINDOWS.load(Ordering::Relaxed));
 }
 
 #[entry]
 fn main() -> ! {
-    let mut input = [[0u32; cm7::workloads::WORDS]; cm7::workloads::FRAMES];
-    for w in cm7::workloads::ALL {
-        (w.prepare)(&mut input);
-        hprintln!("BENCH {} {}", w.name, w.frames);
-        bench_start();
-        let out = (w.run)(black_box(&input));
-        bench_end();
-        black_box(out);
+    let mut window = cm7::workloads::Window::new(bench_start, bench_end);
+    for group in cm7::workloads::GROUPS {
+        for w in *group {
+            hprintln!("BENCH {} {}", w.name, w.frames);
+            black_box((w.run)(&mut window));
+        }
     }
     hprintln!("BENCH done");
     cm7::exit(true)

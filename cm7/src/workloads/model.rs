@@ -1,74 +1,56 @@
-//! Bench workloads: one function per per-frame job the firmware does, run over
-//! [`FRAMES`] frames of prepared input so the count per frame is an average over
-//! varied data. To add a workload (a receiver, an encoder, the bridge step), write a
-//! `prepare` that fills the input words and a `run` that processes every frame and
-//! folds its results into the returned checksum (so nothing is optimised away), then
-//! list it in [`ALL`].
+//! Workloads of the neutral model: position rescaling and axis mapping.
 
+use super::{Window, Workload, FRAMES};
 use crate::tests::prng::Prng;
+use core::hint::black_box;
 use shared::model::{Axis, ForwardFrame, Position};
 
-/// Frames per window.
-pub const FRAMES: usize = 64;
-/// Input words per frame; each workload decides what they mean.
-pub const WORDS: usize = 5;
+/// Input words per frame.
+const WORDS: usize = 5;
 /// The input of one window: [`WORDS`] words for each of [`FRAMES`] frames.
-pub type Input = [[u32; WORDS]; FRAMES];
-
-/// One measured job.
-pub struct Workload {
-    /// Name printed in the table.
-    pub name: &'static str,
-    /// Frames the window processes (0: the empty calibration window).
-    pub frames: u32,
-    /// Fills the input; runs outside the window.
-    pub prepare: fn(&mut Input),
-    /// The measured work; returns a checksum of its results.
-    pub run: fn(&Input) -> u32,
-}
+type Input = [[u32; WORDS]; FRAMES];
 
 /// Every workload, in the order they run. The first one must stay the empty window.
-pub const ALL: &[Workload] = &[
+pub const WORKLOADS: &[Workload] = &[
     Workload {
         name: "(call overhead)",
         frames: 0,
-        prepare: random_words,
-        run: |_| 0,
+        run: |w| w.measure(|| 0),
     },
     Workload {
         name: "model: 3 axes 26->16 bit (XY3 -> XY2)",
         frames: FRAMES as u32,
-        prepare: random_words,
-        run: |input| narrow_axes(input, 26, 16, 3),
+        run: |w| with_random_words(w, |input| narrow_axes(input, 26, 16, 3)),
     },
     Workload {
         name: "model: 3 axes 16->26 bit (XY2 -> XY3)",
         frames: FRAMES as u32,
-        prepare: random_words,
-        run: |input| narrow_axes(input, 16, 26, 3),
+        run: |w| with_random_words(w, |input| narrow_axes(input, 16, 26, 3)),
     },
     Workload {
         name: "model: 3 axes 20->18 bit (HANS -> XY2-100E)",
         frames: FRAMES as u32,
-        prepare: random_words,
-        run: |input| narrow_axes(input, 20, 18, 3),
+        run: |w| with_random_words(w, |input| narrow_axes(input, 20, 18, 3)),
     },
     Workload {
         name: "model: ForwardFrame 5 axes 26->20 + invert",
         frames: FRAMES as u32,
-        prepare: random_words,
-        run: forward_frame_5_axes,
+        run: |w| with_random_words(w, forward_frame_5_axes),
     },
 ];
 
-/// Fixed-seed random words, so every run measures the same data.
-fn random_words(input: &mut Input) {
+/// Runs `work` in the window on fixed-seed random words, so every run measures the
+/// same data.
+fn with_random_words(w: &mut Window, work: fn(&Input) -> u32) -> u32 {
+    let mut input: Input = [[0; WORDS]; FRAMES];
     let mut rng = Prng::new(0x5EED_1234);
     for frame in input.iter_mut() {
         for word in frame.iter_mut() {
             *word = rng.next_u32();
         }
     }
+    let input = black_box(input);
+    w.measure(|| work(&input))
 }
 
 /// Each frame: `axes` positions arrive at `from` bits and leave at `to` bits.
