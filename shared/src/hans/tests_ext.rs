@@ -1,5 +1,6 @@
-//! Extension-code tests. Expected words are worked out by hand: DATA3 = data << 4 |
-//! code; DATA1 = data_high << 4 | code >> 4, DATA2 = data_low << 4 | code & 0xF.
+//! Extension-code tests. Expected words (in [`super::vectors`], shared with the
+//! on-target runner) are worked out by hand: DATA3 = data << 4 | code; DATA1 =
+//! data_high << 4 | code >> 4, DATA2 = data_low << 4 | code & 0xF.
 
 use super::ext::{ControllerExt, DeviceExt, ExtError, LaserAlarms, ZAlarms};
 use super::status::{GalvoAlarms, GalvoStatus};

@@ -1,6 +1,6 @@
-//! Frame <-> pattern tests. Expected patterns are worked out by hand from the spec's
-//! figure 1 (start `01`, each data bit followed by its complement: 0 -> `01`,
-//! 1 -> `10`, stop `111`).
+//! Frame <-> pattern tests. The expected patterns (in [`super::vectors`], shared with
+//! the on-target runner) are worked out by hand from the spec's figure 1 (start `01`,
+//! each data bit followed by its complement: 0 -> `01`, 1 -> `10`, stop `111`).
 
 use super::frame::{read_slot, write_slot, DecodeError, EncodeError, Frame, RING_BYTES};
 use super::vectors::{bits, BIT_PATTERNS, BYTES, PATTERNS, SLOT1};

@@ -1,5 +1,6 @@
-//! Wire tables worked out by hand from XY3-100 §5.2 (little-endian per erratum 6),
-//! decode errors, encode errors and round-trip properties.
+//! The wire table worked out by hand from XY3-100 §5.2 (little-endian per erratum 6;
+//! in [`super::vectors`], shared with the on-target runner), decode errors, encode
+//! errors and round-trip properties.
 
 use super::vectors::{hours, packet_rows, temps, txt, unknown};
 use super::wire::{check_length, LengthRule};

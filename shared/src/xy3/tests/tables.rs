@@ -1,4 +1,5 @@
-//! Hand-worked wire tables (bits written out from §5.1 / §5.1.1) and bad input.
+//! The hand-worked wire tables of [`crate::xy3::vectors`] (bits written out from §5.1 /
+//! §5.1.1, shared with the on-target runner) and bad input.
 
 use crate::model::{self, Axis, ForwardFrame, Position};
 use crate::xy3::neutral::{apply, command_frame, position_frame, to_neutral, Applied};
