@@ -6,8 +6,12 @@
 //! cases for a module, add a submodule here with its own `CASES` list and append it
 //! to [`ALL`] (by hand: a `no_std` crate has no test collector).
 
+pub mod hans;
 pub mod position;
 pub mod prng;
+pub mod xy2;
+pub mod xy3;
+pub mod xy3_back;
 
 /// One named test case.
 pub struct Case {
@@ -18,4 +22,10 @@ pub struct Case {
 }
 
 /// Every case, in run order.
-pub const ALL: &[&[Case]] = &[position::CASES];
+pub const ALL: &[&[Case]] = &[
+    position::CASES,
+    xy2::CASES,
+    xy3::CASES,
+    xy3_back::CASES,
+    hans::CASES,
+];

@@ -57,6 +57,9 @@ pub mod ext;
 pub mod frame;
 pub mod neutral;
 pub mod status;
+#[cfg(any(test, feature = "vectors"))]
+#[doc(hidden)]
+pub mod vectors;
 
 pub use ext::{ControllerExt, DeviceExt, ExtError, LaserAlarms, ZAlarms};
 pub use frame::{

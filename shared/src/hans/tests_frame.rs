@@ -1,85 +1,16 @@
-//! Frame <-> pattern tests. Expected patterns are worked out by hand from the spec's
-//! figure 1 (start `01`, each data bit followed by its complement: 0 -> `01`,
-//! 1 -> `10`, stop `111`).
+//! Frame <-> pattern tests. The expected patterns (in [`super::vectors`], shared with
+//! the on-target runner) are worked out by hand from the spec's figure 1 (start `01`,
+//! each data bit followed by its complement: 0 -> `01`, 1 -> `10`, stop `111`).
 
 use super::frame::{read_slot, write_slot, DecodeError, EncodeError, Frame, RING_BYTES};
+use super::vectors::{bits, BIT_PATTERNS, BYTES, PATTERNS, SLOT1};
 use proptest::prelude::*;
 use proptest::strategy::ValueTree;
 use proptest::test_runner::TestRunner;
 
-/// Parses a hand-written bit string ('0'/'1', anything else ignored) into a pattern,
-/// first character = first bit on the line = u128 bit 124.
-fn bits(s: &str) -> u128 {
-    let mut v = 0u128;
-    let mut n = 0;
-    for c in s.chars() {
-        match c {
-            '0' => v <<= 1,
-            '1' => v = v << 1 | 1,
-            _ => continue,
-        }
-        n += 1;
-    }
-    assert_eq!(n, 125, "hand-written pattern must have 125 bits");
-    v
-}
-
-/// DATA1, DATA2, DATA3 of a table row.
-type Words = (u32, u32, u32);
-
 fn frame(d1: u32, d2: u32, d3: u32) -> Frame {
     Frame::new(d1, d2, d3).unwrap()
 }
-
-// Hex of the u128 pattern: 3 zero padding bits on top, then the 125 line bits.
-// Zero: 000 + "01" x 61 + 111 -> nibbles 0, A x 30, F.
-// Full scale: 000 + 01 + "10" x 60 + 111 -> 0, D, 5 x 29, 7.
-// Centre: like zero, but the D19 pair of each word is "10": line bits 3,4 / 43,44 /
-// 83,84 (u128 display positions 5,6 / 45,46 / 85,86) -> nibbles 1, 11, 21 become C.
-#[rustfmt::skip]
-const PATTERNS: &[(Words, u128)] = &[
-    ((0x0_0000, 0x0_0000, 0x0_0000), 0x0AAA_AAAA_AAAA_AAAA_AAAA_AAAA_AAAA_AAAF),
-    ((0x8_0000, 0x8_0000, 0x8_0000), 0x0CAA_AAAA_AAAC_AAAA_AAAA_ACAA_AAAA_AAAF),
-    ((0xF_FFFF, 0xF_FFFF, 0xF_FFFF), 0x0D55_5555_5555_5555_5555_5555_5555_5557),
-];
-
-// The same kind of table written bit by bit (start | DATA1 | DATA2 | DATA3 | stop),
-// one nibble (4 pairs) per group.
-#[rustfmt::skip]
-const BIT_PATTERNS: &[(Words, &str)] = &[
-    ((0x1_2345, 0xA_BCDE, 0x0_F0F7),
-     "01 \
-      01010110 01011001 01011010 01100101 01100110 \
-      10011001 10011010 10100101 10100110 10101001 \
-      01010101 10101010 01010101 10101010 01101010 \
-      111"),
-    ((0xF_FFFF, 0x0_0000, 0x0_0001),
-     "01 \
-      10101010 10101010 10101010 10101010 10101010 \
-      01010101 01010101 01010101 01010101 01010101 \
-      01010101 01010101 01010101 01010101 01010110 \
-      111"),
-    ((0x8_0000, 0x8_0000, 0x8_0000),
-     "01 \
-      10010101 01010101 01010101 01010101 01010101 \
-      10010101 01010101 01010101 01010101 01010101 \
-      10010101 01010101 01010101 01010101 01010101 \
-      111"),
-];
-
-// The 16-byte form: the pattern followed by 3 zero bits.
-// Zero: "01" x 60 = 15 x 0x55, then 01 111 000 = 0x78.
-// Full: 01 101010 = 0x6A, 14 x 0xAA, then 10 111 000 = 0xB8.
-// Centre: like zero but bytes 0, 5, 10 hold a "10" pair at their bits 5..4: 0x65.
-#[rustfmt::skip]
-const BYTES: &[(Words, [u8; 16])] = &[
-    ((0x0_0000, 0x0_0000, 0x0_0000),
-     [0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x55, 0x78]),
-    ((0x8_0000, 0x8_0000, 0x8_0000),
-     [0x65, 0x55, 0x55, 0x55, 0x55, 0x65, 0x55, 0x55, 0x55, 0x55, 0x65, 0x55, 0x55, 0x55, 0x55, 0x78]),
-    ((0xF_FFFF, 0xF_FFFF, 0xF_FFFF),
-     [0x6A, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xAA, 0xB8]),
-];
 
 #[test]
 fn hex_pattern_table() {
@@ -223,29 +154,6 @@ fn bad_input_reports_the_failing_check() {
         "a failed write must not touch the buffer"
     );
 }
-
-// Slot 1 = stream bits 125..249: it shares byte 15 (its first 3 bits in bits 2..0) with
-// slot 0 and byte 31 (its last 2 bits in bits 7..6) with slot 2.
-// Zero frame into an all-ones ring: byte 15 = 11111 010 = 0xFA, bytes 16..=29 carry
-// line bits 3..114 ("1010...") = 0xAA, byte 30 = bits 115..122 = 1010101 1 = 0xAB,
-// byte 31 = 11 + neighbour 111111 = 0xFF.
-// Full-scale frame into an all-zero ring: byte 15 = 00000 011 = 0x03, bytes 16..=30 =
-// 0x55 (line bits 3..122 alternate 0101..., bit 122 is a stop 1), byte 31 = 11 000000.
-/// (byte index, expected value) pairs.
-type Changed = &'static [(usize, u8)];
-
-#[rustfmt::skip]
-const SLOT1: &[(u8, Words, Changed)] = &[
-    // (fill, frame, changed bytes (index, value); all others keep the fill)
-    (0xFF, (0x0_0000, 0x0_0000, 0x0_0000),
-     &[(15, 0xFA), (16, 0xAA), (17, 0xAA), (18, 0xAA), (19, 0xAA), (20, 0xAA), (21, 0xAA),
-       (22, 0xAA), (23, 0xAA), (24, 0xAA), (25, 0xAA), (26, 0xAA), (27, 0xAA), (28, 0xAA),
-       (29, 0xAA), (30, 0xAB), (31, 0xFF)]),
-    (0x00, (0xF_FFFF, 0xF_FFFF, 0xF_FFFF),
-     &[(15, 0x03), (16, 0x55), (17, 0x55), (18, 0x55), (19, 0x55), (20, 0x55), (21, 0x55),
-       (22, 0x55), (23, 0x55), (24, 0x55), (25, 0x55), (26, 0x55), (27, 0x55), (28, 0x55),
-       (29, 0x55), (30, 0x55), (31, 0xC0)]),
-];
 
 #[test]
 fn slot_table_next_to_filled_neighbours() {

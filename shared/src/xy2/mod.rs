@@ -70,6 +70,9 @@
 mod frame;
 mod neutral;
 mod status;
+#[cfg(any(test, feature = "vectors"))]
+#[doc(hidden)]
+pub mod vectors;
 
 pub use frame::{
     decode, detected_double_errors, encode, DecodeError, EncodeError, Frame, FrameKind, LinkConfig,

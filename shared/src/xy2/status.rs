@@ -197,29 +197,7 @@ mod tests {
     use crate::xy2::Parity;
     use proptest::prelude::*;
 
-    /// (power OK, temperature OK, ack X, ack Y).
-    type Flags = (bool, bool, bool, bool);
-
-    // Per byte: bit 7 power, 6 temperature, 4 ack Y, 3 ack X; bits 5, 2, 0 = 1, 1 = 0.
-    #[rustfmt::skip]
-    const WORDS: &[(Flags, u16)] = &[
-        // ((power, temperature, ack X, ack Y), word)
-        ((true,  true,  true,  true ), 0b11111101_11111101), // 0xFDFD, all OK
-        ((false, false, false, false), 0b00100101_00100101), // 0x2525, fixed bits only
-        ((false, true,  true,  true ), 0b01111101_01111101), // 0x7D7D, supply fault
-        ((true,  false, true,  true ), 0b10111101_10111101), // 0xBDBD, temperature
-        ((true,  true,  false, true ), 0b11110101_11110101), // 0xF5F5, X not reached
-        ((true,  true,  true,  false), 0b11101101_11101101), // 0xEDED, Y not reached
-    ];
-
-    // The STATUS frame: `001` + word + parity (WholeFrame: 20 bits even).
-    #[rustfmt::skip]
-    const FRAMES: &[(u16, u32, u32)] = &[
-        // (word, WholeFrame frame,                    DataOnly frame)
-        (0xFDFD, 0b001_1111110111111101_1, 0b001_1111110111111101_0), // 14 data ones + header: P = 1
-        (0x2525, 0b001_0010010100100101_1, 0b001_0010010100100101_0), // 6 data ones + header: P = 1
-        (0x7D7D, 0b001_0111110101111101_1, 0b001_0111110101111101_0), // 12 data ones + header: P = 1
-    ];
+    use crate::xy2::vectors::{Flags, STATUS_FRAMES as FRAMES, STATUS_WORDS as WORDS};
 
     fn fields(w: StatusWord) -> Flags {
         (

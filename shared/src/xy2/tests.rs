@@ -37,36 +37,7 @@ const ALL_CONFIGS: [LinkConfig; 6] = [
     STD_WHOLE, STD_DATA, STD_IGNORE, EXT_WHOLE, EXT_DATA, EXT_IGNORE,
 ];
 
-// Worked by hand: count the ones of header + data; the parity bit makes the count
-// even (16-bit, commands) or odd (18-bit) over the policy's scope.
-// Literals are grouped header_data_parity (commands: header_command_parameter_parity).
-#[rustfmt::skip]
-const POSITION16: &[(u16, u32, u32)] = &[
-    // (value,  WholeFrame word,                   DataOnly word)
-    (0x0000, 0b001_0000000000000000_1, 0b001_0000000000000000_0), // 1 one (header)
-    (0x8000, 0b001_1000000000000000_0, 0b001_1000000000000000_1), // centre, 2 ones
-    (0xFFFF, 0b001_1111111111111111_1, 0b001_1111111111111111_0), // full scale, 17 ones
-    (0x1234, 0b001_0001001000110100_0, 0b001_0001001000110100_1), // 5 data ones
-    (0x0001, 0b001_0000000000000001_0, 0b001_0000000000000001_1),
-];
-
-#[rustfmt::skip]
-const POSITION18: &[(u32, u32, u32)] = &[
-    // (value,   WholeFrame word (odd, 20 bits),     DataOnly word (odd, bits 18..0))
-    (0x0_0000, 0b1_000000000000000000_0, 0b1_000000000000000000_1), // header one only
-    (0x2_0000, 0b1_100000000000000000_1, 0b1_100000000000000000_0), // centre
-    (0x3_FFFF, 0b1_111111111111111111_0, 0b1_111111111111111111_1), // full scale
-    (0x1_2345, 0b1_010010001101000101_1, 0b1_010010001101000101_0), // 7 data ones
-];
-
-#[rustfmt::skip]
-const COMMANDS: &[(u8, u8, u32, u32)] = &[
-    // (command, parameter, WholeFrame word,              DataOnly word)
-    (0x00, 0x00, 0b111_00000000_00000000_1, 0b111_00000000_00000000_0),
-    (0x80, 0x00, 0b111_10000000_00000000_0, 0b111_10000000_00000000_1),
-    (0xFF, 0xFF, 0b111_11111111_11111111_1, 0b111_11111111_11111111_0),
-    (0x05, 0x01, 0b111_00000101_00000001_0, 0b111_00000101_00000001_1), // status select
-];
+use super::vectors::{COMMANDS, POSITION16, POSITION18};
 
 /// Checks encode and decode of one table row under both checked policies, plus
 /// Ignore (encodes whole-frame parity, decodes either parity bit).

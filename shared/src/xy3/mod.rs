@@ -72,6 +72,9 @@ pub mod back;
 pub mod command;
 pub mod frame;
 pub mod neutral;
+#[cfg(any(test, feature = "vectors"))]
+#[doc(hidden)]
+pub mod vectors;
 
 pub use command::{AxisFlags, BackRate, CodeTooWide, Command};
 pub use frame::{decode, encode, DecodeError, EncodeError, Frame, FrameSize};

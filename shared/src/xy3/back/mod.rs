@@ -50,6 +50,9 @@ pub mod neutral;
 mod packet;
 mod parser;
 mod sender;
+#[cfg(any(test, feature = "vectors"))]
+#[doc(hidden)]
+pub mod vectors;
 pub mod wire;
 
 pub use packet::{

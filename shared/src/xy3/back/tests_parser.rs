@@ -1,6 +1,10 @@
 //! The streaming parser against hand-built streams and random chunkings.
 
 use super::tests_packet::any_packet;
+use super::vectors::{
+    Expected, BAD_LENGTH_EVENTS, BAD_LENGTH_STATS, BAD_LENGTH_STREAM, GARBAGE_EVENTS,
+    GARBAGE_STATS, GARBAGE_STREAM, SPLIT_EVENTS, SPLIT_STREAM,
+};
 use super::wire::check_length;
 use super::*;
 use proptest::prelude::*;
@@ -53,26 +57,21 @@ fn bad_len(ty: u8, len: u8) -> Ev {
     Ev::Lost(LostSyncReason::BadLength { ty, len })
 }
 
+/// The owned form of a table event.
+fn expected(e: &Expected) -> Ev {
+    match *e {
+        Expected::Packet(ty, payload) => Ev::P(ty, payload.to_vec()),
+        Expected::Resynced(dropped) => Ev::Resynced(dropped),
+        Expected::LostSync(reason) => Ev::Lost(reason),
+    }
+}
+
 #[test]
 fn garbage_before_the_first_sync_is_dropped_and_counted() {
-    #[rustfmt::skip]
-    let stream = [
-        0x00, 0xFF, 0x41, 0x00,             // 4 bytes of garbage
-        0x48, 0x41, 0x01,                   // a near miss: 3 more dropped
-        0x48, 0x41, 0x00, 0x48,             // the sync sequence
-        0x01, 0x03, 0x61, 0x62, 0x63,       // VENDOR "abc", head was above
-    ];
-    let (ev, stats) = run(&stream);
-    assert_eq!(ev, vec![Ev::Resynced(7), Ev::P(0x01, b"abc".to_vec())]);
-    assert_eq!(
-        stats,
-        Stats {
-            packets: 1,
-            resyncs: 1,
-            lost_sync: 0,
-            dropped_bytes: 7
-        }
-    );
+    let (ev, stats) = run(GARBAGE_STREAM);
+    let want: std::vec::Vec<Ev> = GARBAGE_EVENTS.iter().map(expected).collect();
+    assert_eq!(ev, want);
+    assert_eq!(stats, GARBAGE_STATS);
 }
 
 #[test]
@@ -89,23 +88,8 @@ fn nothing_is_delivered_before_sync() {
     assert_eq!(stats.dropped_bytes, 10);
 }
 
-#[rustfmt::skip]
-const SPLIT_STREAM: &[u8] = &[
-    0x48, 0x41, 0x00,                                   // SYNC
-    0x48, 0x01, 0x03, 0x61, 0x62, 0x63,                 // VENDOR "abc"
-    0x48, 0x05, 0x04, 0x01, 0x80, 0xF6, 0x09,           // TEMPERATURES [None, 25.50]
-    0x48, 0x41, 0x00,                                   // SYNC
-    0x48, 0x09, 0x04, 0x00, 0x00, 0x00, 0x00,           // WORKING_HOURS [0]
-];
-
 fn split_expected() -> std::vec::Vec<Ev> {
-    vec![
-        Ev::Resynced(0),
-        Ev::P(0x01, b"abc".to_vec()),
-        Ev::P(0x05, vec![0x01, 0x80, 0xF6, 0x09]),
-        Ev::P(0x41, vec![]),
-        Ev::P(0x09, vec![0, 0, 0, 0]),
-    ]
+    SPLIT_EVENTS.iter().map(expected).collect()
 }
 
 #[test]
@@ -124,30 +108,10 @@ fn every_chunk_boundary_gives_the_same_events() {
 
 #[test]
 fn known_type_with_bad_length_loses_sync() {
-    #[rustfmt::skip]
-    let stream = [
-        0x48, 0x41, 0x00,
-        0x48, 0x07, 0x17, 0x00, 0x00,        // ERROR_STATE with 23 bytes: bad
-        0x48, 0x07, 0x01, 0x01,              // valid, but out of sync: dropped
-        0x48, 0x41, 0x00, 0x48,              // resync
-        0x05, 0x03, 0x00, 0x00, 0x00,        // TEMPERATURES odd length: bad
-    ];
-    let (ev, stats) = run(&stream);
-    assert_eq!(
-        ev,
-        vec![
-            Ev::Resynced(0),
-            bad_len(0x07, 0x17),
-            // head + type, the length byte, 2 zeros, then 4 bytes of the packet
-            Ev::Resynced(2 + 1 + 2 + 4),
-            bad_len(0x05, 0x03),
-        ]
-    );
-    assert_eq!(stats.lost_sync, 2);
-    assert_eq!(stats.resyncs, 2);
-    assert_eq!(stats.packets, 0);
-    // 9 before the resync, then head + type + length + three zeros.
-    assert_eq!(stats.dropped_bytes, 9 + 6);
+    let (ev, stats) = run(BAD_LENGTH_STREAM);
+    let want: std::vec::Vec<Ev> = BAD_LENGTH_EVENTS.iter().map(expected).collect();
+    assert_eq!(ev, want);
+    assert_eq!(stats, BAD_LENGTH_STATS);
 }
 
 #[test]
