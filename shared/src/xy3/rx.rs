@@ -212,21 +212,21 @@ impl Period {
         self.lines.iter().flatten().all(Result::is_ok)
     }
 
-    /// The neutral events of this period: one [`LineEvent::Frame`] if every configured
-    /// line decoded (positions per axis, the command from X, §5.1.1; a command on
-    /// another line is ignored), otherwise one fault per failed line and no frame.
+    /// The neutral events of this period, handed to `emit`: one
+    /// [`LineEvent::Frame`] if every configured line decoded (positions per axis, the
+    /// command from X, §5.1.1; a command on another line is ignored), otherwise one
+    /// fault per failed line and no frame.
     ///
     /// A command frame on X leaves `axes[X]` empty for that period: the controller
     /// sent no X position, so the bridge should hold the last X position (a head does
     /// the same while it executes a command), not treat X as lost.
-    pub fn line_events(&self) -> heapless::Vec<LineEvent, 5> {
-        let mut out = heapless::Vec::new();
+    pub fn for_each_event(&self, mut emit: impl FnMut(LineEvent)) {
         let mut frame = ForwardFrame::default();
         let mut ok = true;
         for (axis, result) in Axis::ALL.iter().zip(self.lines.iter()) {
-            let fault = match result {
+            let kind = match result {
                 None => continue,
-                // Decoded frames always convert; the error arm is unreachable.
+                // Decoded frames always convert; the error arm cannot happen.
                 Some(Ok(f)) => match super::neutral::apply(f, *axis, &mut frame) {
                     Ok(_) => continue,
                     Err(_) => FaultKind::CheckFailed,
@@ -239,15 +239,23 @@ impl Period {
                 Some(Err(RxError::Overrun)) => FaultKind::Dropped,
             };
             ok = false;
-            // At most five lines, the vector holds five.
-            let _ = out.push(LineEvent::Fault {
+            emit(LineEvent::Fault {
                 line: Line::Axis(*axis),
-                kind: fault,
+                kind,
             });
         }
         if ok {
-            let _ = out.push(LineEvent::Frame(frame));
+            emit(LineEvent::Frame(frame));
         }
+    }
+
+    /// [`Period::for_each_event`] collected (at most five events).
+    pub fn line_events(&self) -> heapless::Vec<LineEvent, 5> {
+        let mut out = heapless::Vec::new();
+        // At most one event per line or one frame: five always fit.
+        self.for_each_event(|e| {
+            let _ = out.push(e);
+        });
         out
     }
 }
@@ -394,27 +402,25 @@ impl Receiver {
         }
     }
 
-    /// The byte at `pos` on `axis`'s line, if still in the window and already pushed.
-    fn byte(&self, axis: usize, pos: u32) -> Option<u8> {
-        let age = self.pushed.wrapping_sub(pos);
-        if age == 0 || age as usize > WINDOW {
-            return None;
-        }
-        self.rings.get(axis)?.get(pos as usize % WINDOW).copied()
-    }
-
-    /// The wire word of `axis` for the period `[start, start + n)` at bit offset `k`.
-    fn word(&self, axis: usize, n: u32, k: u8) -> Option<u32> {
+    /// The wire word of `axis` for the period `[start, start + n)` at bit offset `k`
+    /// (`n` is 3 or 4; the caller checked that the bytes are in the window).
+    fn word(&self, axis: usize, n: u32, k: u8) -> u32 {
+        let Some(ring) = self.rings.get(axis) else {
+            return 0;
+        };
+        let at = |i: u32| {
+            let pos = self.start.wrapping_add(i) as usize % WINDOW;
+            u64::from(ring.get(pos).copied().unwrap_or(0))
+        };
         let mut v: u64 = 0;
         for i in 0..n {
-            v = v << 8 | u64::from(self.byte(axis, self.start.wrapping_add(i))?);
+            v = v << 8 | at(i);
         }
         if k > 0 {
-            let next = self.byte(axis, self.start.wrapping_add(n))?;
-            v = (v << k | u64::from(next >> (8 - k))) & ((1 << (8 * n)) - 1);
+            v = (v << k | at(n) >> (8 - k)) & ((1 << (8 * n)) - 1);
         }
         // At most 32 bits remain.
-        Some(v as u32)
+        v as u32
     }
 
     /// Decodes every configured line at offset `k`.
@@ -423,9 +429,8 @@ impl Receiver {
         for (i, slot) in out.iter_mut().enumerate() {
             if self.lines.0 & 1 << i != 0 {
                 *slot = Some(match self.word(i, n, k) {
-                    Some(0) => Err(RxError::Dead),
-                    Some(w) => decode(w, size).map_err(RxError::Check),
-                    None => Err(RxError::Overrun),
+                    0 => Err(RxError::Dead),
+                    w => decode(w, size).map_err(RxError::Check),
                 });
             }
         }

@@ -34,8 +34,10 @@
 //! other lines.
 //!
 //! # Cost
-//! Masks are precomputed from the [`OutPinMap`]; a frame costs a few instructions per
-//! line and bit, no branches on the data.
+//! The pins are resolved once: a 32-entry table gives the BSRR data part for every
+//! pattern of one bit per line. Encoding transposes the lines' words eight bits at a
+//! time (an 8x8 bit-matrix transpose) and looks each bit time's pattern up, so the
+//! cost hardly depends on the number of lines and has no branches on the data.
 
 use core::fmt;
 
@@ -151,6 +153,9 @@ pub struct Transmitter {
     data: [Option<u8>; 5],
     /// Set bits of every driven data pin.
     data_mask: u32,
+    /// The BSRR data part (set for ones, reset for zeros) of every pattern of one bit
+    /// per line: bit 4 = X, bit 3 = Y, … bit 0 = W.
+    lut: [u32; 32],
     size: FrameSize,
     ticks: usize,
 }
@@ -179,11 +184,23 @@ impl Transmitter {
             used |= set(*p);
         }
         let data_mask = pins.data.iter().flatten().fold(0, |m, &p| m | set(p));
+        let mut lut = [0u32; 32];
+        for (v, entry) in lut.iter_mut().enumerate() {
+            let ones = pins
+                .data
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| v >> (4 - i) & 1 != 0)
+                .filter_map(|(_, p)| *p)
+                .fold(0, |m, p| m | set(p));
+            *entry = ones | (data_mask ^ ones) << 16;
+        }
         Ok(Transmitter {
             clk: pins.clk,
             sync: pins.sync,
             data: pins.data,
             data_mask,
+            lut,
             size: config.size,
             ticks: 2 * config.size.bits() as usize + config.idle_ticks as usize,
         })
@@ -227,13 +244,15 @@ impl Transmitter {
     /// frame per axis (indexed by [`Axis::index`]), present exactly for the driven
     /// lines, all of the configured size.
     pub fn encode(&self, frames: &[Option<Frame>; 5], out: &mut [u32]) -> Result<(), TxError> {
-        // Each driven line's word, MSB-aligned in bit 31 so the next bit is always the
-        // top bit; `pins` holds the matching pin numbers.
+        // Each line's word MSB-aligned (first bit in bit 31); 0 for lines not driven.
         let mut words = [0u32; 5];
-        let mut pins = [0u8; 5];
-        let mut n = 0;
-        for ((axis, pin), frame) in Axis::ALL.iter().zip(self.data).zip(frames) {
-            let word = match (pin, frame) {
+        for (((axis, pin), frame), word) in Axis::ALL
+            .iter()
+            .zip(self.data)
+            .zip(frames)
+            .zip(words.iter_mut())
+        {
+            *word = match (pin, frame) {
                 (None, None) => continue,
                 (None, Some(_)) => return Err(TxError::NotDriven(*axis)),
                 (Some(_), None) => return Err(TxError::MissingFrame(*axis)),
@@ -241,43 +260,47 @@ impl Transmitter {
                     return Err(TxError::WrongSize(*axis))
                 }
                 (Some(_), Some(f)) => encode(f).map_err(TxError::Encode)?.0,
-            };
-            if let (Some(w), Some(p), Some(pin)) = (words.get_mut(n), pins.get_mut(n), pin) {
-                *w = word << (32 - u32::from(self.size.bits()));
-                *p = pin;
-            }
-            n += 1;
+            } << (32 - u32::from(self.size.bits()));
         }
-        let words = words.get_mut(..n).unwrap_or_default();
-        let pins = pins.get(..n).unwrap_or_default();
         let out = self.slot(out)?;
         let (clk_set, clk_reset) = (set(self.clk), reset(self.clk));
         let bits = usize::from(self.size.bits());
-        // The BSRR value for the data levels of the next bit (set for ones, reset for
-        // zeros), consuming that bit of every word.
-        let mut next_bit = || {
-            let mut level = 0;
-            for (w, &p) in words.iter_mut().zip(pins) {
-                level |= (*w >> 31) << p;
-                *w <<= 1;
-            }
-            level | (self.data_mask ^ level) << 16
-        };
+        let [a, b, c, d, e] = words;
         let Some((setup, rest)) = out.split_first_mut() else {
             return Ok(());
         };
-        let mut data = next_bit();
-        *setup = reset(self.sync) | clk_reset | data;
         let mut pairs = rest.chunks_exact_mut(2);
-        for b in 0..bits {
-            if let Some([rising, falling]) = pairs.next() {
-                if b > 0 {
-                    data = next_bit();
+        // Eight bits at a time: transpose the 8x8 bit matrix whose rows are byte `k`
+        // of each line (rows 5..7 empty), so that row `j` of the result holds bit `j`
+        // of every line (X in bit 7 … W in bit 3), then look the pattern up
+        // (Hacker's Delight, 2nd ed., §7-3, transposing an 8x8 bit matrix).
+        for k in 0..bits / 8 {
+            let sh = 24 - 8 * k as u32;
+            let byte = |w: u32| w >> sh & 0xFF;
+            let mut x = byte(a) << 24 | byte(b) << 16 | byte(c) << 8 | byte(d);
+            let mut y = byte(e) << 24;
+            let mut t = (x ^ x >> 7) & 0x00AA_00AA;
+            x ^= t ^ t << 7;
+            t = (y ^ y >> 7) & 0x00AA_00AA;
+            y ^= t ^ t << 7;
+            t = (x ^ x >> 14) & 0x0000_CCCC;
+            x ^= t ^ t << 14;
+            t = (y ^ y >> 14) & 0x0000_CCCC;
+            y ^= t ^ t << 14;
+            t = x & 0xF0F0_F0F0 | y >> 4 & 0x0F0F_0F0F;
+            y = x << 4 & 0xF0F0_F0F0 | y & 0x0F0F_0F0F;
+            x = t;
+            for row in [x >> 24, x >> 16, x >> 8, x, y >> 24, y >> 16, y >> 8, y] {
+                let data = self.lut.get((row >> 3 & 31) as usize).copied().unwrap_or(0);
+                if let Some([rising, falling]) = pairs.next() {
+                    *rising = clk_set | data;
+                    *falling = clk_reset;
                 }
-                *rising = clk_set | data;
-                *falling = clk_reset;
             }
         }
+        // Set-up word: SYNC falls with bit 0's data in place, CLK still low.
+        let first = rest.first().map_or(0, |w| w & !clk_set);
+        *setup = reset(self.sync) | clk_reset | first;
         if let Some((rise, idle)) = out
             .get_mut(2 * bits + 1..)
             .and_then(|t| t.split_first_mut())
