@@ -73,6 +73,13 @@
 //! high line fails the checks by itself (24-bit: first bit 1; 32-bit: 26 ones give
 //! parity 10, not 15).
 //!
+//! # Latency
+//! Locked at offset 0 (always the case when the SPI drops partial bytes), a period is
+//! delivered as soon as its end position and its bytes are in. Locked at another
+//! offset or hunting, it also needs the first byte of the next period (which holds
+//! its last bits), so it comes about a byte time later; a period followed by a pause
+//! waits for the next frame.
+//!
 //! # Bounded work
 //! [`Receiver::poll`] handles one period per call: decoding `c` lines once (locked)
 //! or eight times (hunting). Nothing panics and nothing allocates.
