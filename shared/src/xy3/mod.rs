@@ -1,5 +1,6 @@
 //! XY3-100: forward frames and control commands (this module and [`frame`],
-//! [`command`], [`neutral`]) and the RS485 backchannel ([`back`]).
+//! [`command`], [`neutral`]), the line-level receiver ([`rx`]) and transmitter
+//! ([`tx`]), and the RS485 backchannel ([`back`], receive path in [`back_rx`]).
 //!
 //! # Forward transmission (XY3-100 §5.1)
 //! The controller drives SYNC, CLK and one data line per axis (X, Y, Z, U, W). SYNC
@@ -69,9 +70,12 @@
 //!   parity errors.
 
 pub mod back;
+pub mod back_rx;
 pub mod command;
 pub mod frame;
 pub mod neutral;
+pub mod rx;
+pub mod tx;
 #[cfg(any(test, feature = "vectors"))]
 #[doc(hidden)]
 pub mod vectors;

@@ -1,0 +1,132 @@
+//! Workloads of the XY3-100 line level: the receiver (SPI byte rings + end positions
+//! -> periods -> neutral events) and the BSRR transmitter.
+
+use super::{Window, Workload, FRAMES};
+use crate::tests::prng::Prng;
+use core::hint::black_box;
+use shared::model::{Axis, LineEvent};
+use shared::xy3::rx::{Lines, Receiver};
+use shared::xy3::tx::{OutPinMap, Transmitter, TxConfig};
+use shared::xy3::{encode, Frame, FrameSize};
+
+/// Bytes per 32-bit frame.
+const BPF: usize = 4;
+/// Frames pushed between polls (a DMA half of 64 bytes per line).
+const CHUNK: usize = 16;
+
+/// Every workload, in the order they run.
+pub const WORKLOADS: &[Workload] = &[
+    Workload {
+        name: "xy3 rx: X Y Z 32-bit, bytes -> periods",
+        frames: FRAMES as u32,
+        run: |w| receive(w, false),
+    },
+    Workload {
+        name: "xy3 rx: X Y Z 32-bit, bytes -> LineEvents",
+        frames: FRAMES as u32,
+        run: |w| receive(w, true),
+    },
+    Workload {
+        name: "xy3 tx: 3 lines 32-bit -> BSRR",
+        frames: FRAMES as u32,
+        run: |w| transmit(w, 3),
+    },
+    Workload {
+        name: "xy3 tx: 5 lines 32-bit -> BSRR",
+        frames: FRAMES as u32,
+        run: |w| transmit(w, 5),
+    },
+];
+
+/// A random 32-bit position frame.
+fn frame(rng: &mut Prng) -> Frame {
+    Frame::Position32(rng.bits(26))
+}
+
+/// `FRAMES` random frames on X, Y, Z as the SPI rings would hold them, then the
+/// receiver fed one DMA half at a time (push bytes, push ends, poll until empty).
+fn receive(w: &mut Window, events: bool) -> u32 {
+    let mut rng = Prng::new(0x0C0F_FEE3);
+    let mut rings = [[0u8; FRAMES * BPF]; 3];
+    for i in 0..FRAMES {
+        for ring in rings.iter_mut() {
+            let word = encode(&frame(&mut rng)).map_or(0, |(w, _)| w);
+            if let Some(dst) = ring.get_mut(i * BPF..(i + 1) * BPF) {
+                dst.copy_from_slice(&word.to_be_bytes());
+            }
+        }
+    }
+    let mut ends = [0u32; FRAMES];
+    for (i, e) in ends.iter_mut().enumerate() {
+        *e = ((i + 1) * BPF) as u32;
+    }
+    let (rings, ends) = black_box((rings, ends));
+    let mut rx = Receiver::new(Lines::XYZ);
+    w.measure(|| {
+        let mut sum = 0u32;
+        for c in 0..FRAMES / CHUNK {
+            let bytes = c * CHUNK * BPF..(c + 1) * CHUNK * BPF;
+            let [x, y, z] = &rings;
+            let slices = [
+                x.get(bytes.clone()).unwrap_or_default(),
+                y.get(bytes.clone()).unwrap_or_default(),
+                z.get(bytes).unwrap_or_default(),
+            ];
+            let _ = rx.push_bytes(&slices);
+            rx.push_ends(ends.get(c * CHUNK..(c + 1) * CHUNK).unwrap_or_default());
+            while let Some(p) = rx.poll() {
+                if events {
+                    p.for_each_event(|e| {
+                        if let LineEvent::Frame(f) = e {
+                            let x = f.axis(Axis::X).map_or(0, |p| p.aligned());
+                            sum = sum.wrapping_add(x);
+                        }
+                    });
+                } else if let Some(Some(Ok(Frame::Position32(v)))) = p.lines.first() {
+                    sum = sum.wrapping_add(*v);
+                }
+            }
+        }
+        sum
+    })
+}
+
+/// `FRAMES` periods of random 32-bit frames on `lines` lines encoded into BSRR words.
+fn transmit(w: &mut Window, lines: usize) -> u32 {
+    let mut data = [None; 5];
+    for (i, d) in data.iter_mut().enumerate().take(lines) {
+        *d = Some(i as u8 * 2 + 2);
+    }
+    let config = TxConfig {
+        pins: OutPinMap {
+            clk: 0,
+            sync: 1,
+            data,
+        },
+        size: FrameSize::Bits32,
+        idle_ticks: 2,
+    };
+    let Ok(tx) = Transmitter::new(&config) else {
+        return 0;
+    };
+    let mut rng = Prng::new(0x7A_57A5);
+    let mut input = [[None; 5]; FRAMES];
+    for period in input.iter_mut() {
+        for slot in period.iter_mut().take(lines) {
+            *slot = Some(frame(&mut rng));
+        }
+    }
+    let input = black_box(input);
+    let mut out = [0u32; 66];
+    w.measure(|| {
+        let mut sum = 0u32;
+        for period in input.iter() {
+            if tx.encode(period, &mut out).is_ok() {
+                // Two words are enough to keep the work; `black_box` keeps the stores.
+                let out = black_box(&mut out);
+                sum = sum.wrapping_add(out[1] ^ out[63]);
+            }
+        }
+        sum
+    })
+}
