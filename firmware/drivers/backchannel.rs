@@ -21,7 +21,7 @@
 //! result is what we asked for either way.
 
 use embassy_stm32::mode::Async;
-use embassy_stm32::usart::{Config, ConfigError, RingBufferedUartRx, Uart, UartTx};
+use embassy_stm32::usart::{Config, ConfigError, RingBufferedUartRx, Uart, UartRx, UartTx};
 
 /// Driver-enable lead and tail time in 1/16 bit: the transceiver needs its enable a
 /// moment before the start bit, and must not cut off the last stop bit.
@@ -36,26 +36,47 @@ pub fn config(baud: u32) -> Config {
     c
 }
 
-/// Transmit and receive halves of the running backchannel.
+/// Transmit and receive halves of the running backchannel; a side that does not
+/// speak XY3-100 leaves its half out.
 pub struct Backchannel<'d> {
-    /// DMA transmitter (DE handled by hardware).
-    pub tx: UartTx<'d, Async>,
-    /// Ring-buffered DMA receiver.
-    pub rx: RingBufferedUartRx<'d>,
+    /// DMA transmitter (DE handled by hardware): controller side is XY3-100.
+    pub tx: Option<UartTx<'d, Async>>,
+    /// Ring-buffered DMA receiver: head side is XY3-100.
+    pub rx: Option<RingBufferedUartRx<'d>>,
 }
 
 impl<'d> Backchannel<'d> {
-    /// Splits a UART built with `Uart::new_with_de` and starts ring reception into
-    /// `ring`.
-    pub fn new(uart: Uart<'d, Async>, ring: &'d mut [u8]) -> Self {
+    /// Splits a UART built with `Uart::new_with_de`; with `receive`, starts ring
+    /// reception into `ring`, else drops the receiver (the head-side pair 6 then
+    /// carries another protocol's STATUS).
+    pub fn duplex(uart: Uart<'d, Async>, ring: &'d mut [u8], receive: bool) -> Self {
         let (tx, rx) = uart.split();
-        let mut rx = rx.into_ring_buffered(ring);
-        rx.start_uart();
-        Self { tx, rx }
+        Self {
+            tx: Some(tx),
+            rx: receive.then(|| start(rx.into_ring_buffered(ring))),
+        }
+    }
+
+    /// Receiver only (controller side is not XY3-100, so the DE pin is not the
+    /// UART's and TX stays unused).
+    pub fn receive_only(rx: UartRx<'d, Async>, ring: &'d mut [u8]) -> Self {
+        Self {
+            tx: None,
+            rx: Some(start(rx.into_ring_buffered(ring))),
+        }
     }
 
     /// Changes the baud rate of both directions (they share USART_BRR).
     pub fn set_baud(&mut self, baud: u32) -> Result<(), ConfigError> {
-        self.rx.set_baudrate(baud)
+        match (&self.rx, &self.tx) {
+            (Some(rx), _) => rx.set_baudrate(baud),
+            (None, Some(tx)) => tx.set_baudrate(baud),
+            (None, None) => Ok(()),
+        }
     }
+}
+
+fn start(mut rx: RingBufferedUartRx<'_>) -> RingBufferedUartRx<'_> {
+    rx.start_uart();
+    rx
 }
