@@ -11,10 +11,8 @@
 #![no_std]
 #![no_main]
 
-mod board;
 mod channels;
 mod config;
-mod drivers;
 mod tasks;
 
 use embassy_executor::{InterruptExecutor, Spawner};
@@ -22,6 +20,7 @@ use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
 use embassy_stm32::usart::{Uart, UartRx};
+use xy_bridge::{board, drivers};
 use {defmt_rtt as _, panic_probe as _};
 
 use config::{Controller, Head, ROLES};

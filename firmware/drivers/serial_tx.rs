@@ -11,11 +11,14 @@
 //! Register sequence (RM0433 §51 "Serial audio interface"):
 //! 1. Kernel + bus clock on, reset (RCC §8; SAI kernel = PLL2_P 100 MHz, board.rs).
 //! 2. CR1 with SAIEN = 0: MODE = master transmitter, PRTCFG = free protocol,
-//!    DS = 8 bits, LSBFIRST = 0 (MSB first), CKSTR = data changes on the rising
-//!    edge, SYNCEN = asynchronous, OUTDRIV = 1 (SD driven as soon as SAIEN, so the line
+//!    DS = 8 bits, LSBFIRST = 0 (MSB first), CKSTR = 0 (the pac calls it
+//!    FALLING_EDGE, the sampling edge: our data changes on the rising SCK edge, so a
+//!    receiver clocked by SCK -- the HIL test's SPI slave -- samples it on the falling
+//!    edge; the head itself oversamples and never sees SCK), SYNCEN = asynchronous, OUTDRIV = 1 (SD driven as soon as SAIEN, so the line
 //!    idles at the first bit instead of floating), NODIV = 1 and MCKDIV = 8:
 //!    f_SCK = f_sai_ker_ck / MCKDIV = 100 MHz / 8 = 12.5 MHz (§51.4.8 clock
-//!    generator, "NODIV = 1" case).
+//!    generator, "clock generator programming when NODIV = 1"; FRL + 1 may then be
+//!    any value from 8 to 256).
 //! 3. FRCR: FRL = 7 (8-bit frame), FSALL = 0, FSDEF = 0, FSOFF = 0 (FS is unused).
 //!    SLOTR: SLOTSZ = data size, NBSLOT = 0 (one slot), SLOTEN = slot 0 (§51.4.10).
 //!    Every SCK cycle then carries a data bit: no gaps between bytes.
@@ -97,7 +100,7 @@ impl<'a> SerialTx<'a> {
             w.set_prtcfg(Prtcfg::FREE);
             w.set_ds(Ds::BIT8);
             w.set_lsbfirst(Lsbfirst::MSB_FIRST);
-            w.set_ckstr(Ckstr::RISING_EDGE);
+            w.set_ckstr(Ckstr::FALLING_EDGE);
             w.set_syncen(Syncen::ASYNCHRONOUS);
             w.set_outdriv(Outdriv::IMMEDIATELY);
             w.set_nodiv(true);

@@ -20,7 +20,6 @@ use embassy_stm32::{pac, Peri};
 use heapless::Vec;
 use shared::hans::frame::{write_slot, RING_BYTES};
 
-use super::ring::dma_ring;
 use super::Irqs;
 use crate::board::{HansOutRes, HansStatusInRes, WaveRes, Xy2InRes, Xy3InRes};
 use crate::channels::{
@@ -32,6 +31,7 @@ use crate::drivers::spi_slave_rx::SpiSlaveRx;
 use crate::drivers::sync_marks::SyncMarks;
 use crate::drivers::wave_out::WaveOut;
 use crate::drivers::xy2_sampler::Xy2Sampler;
+use xy_bridge::dma_ring;
 
 /// Hands a half to the bridge without waiting: a full queue means the bridge is
 /// late, and waiting would only turn that into a DMA overrun one half later.

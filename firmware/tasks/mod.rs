@@ -5,7 +5,6 @@
 //! without affecting the line timing.
 
 pub mod line;
-mod ring;
 pub mod status;
 
 use embassy_stm32::gpio::Output;
@@ -128,5 +127,5 @@ const BACK_RING: usize = 1024;
 
 /// The backchannel's receive ring in SRAM3 (DMA2). Called once, by `main`.
 pub fn back_ring() -> &'static mut [u8; BACK_RING] {
-    ring::dma_ring!(".sram3", u8, BACK_RING)
+    xy_bridge::dma_ring!(".sram3", u8, BACK_RING)
 }

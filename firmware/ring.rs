@@ -7,9 +7,11 @@
 /// Zeroes a fresh ring of `$n` `$t` in section `$section` and returns
 /// `&'static mut [$t; $n]`.
 ///
-/// Must be expanded in code that runs at most once per boot (each use site is in a
-/// task that `main` spawns once from a pool of one, and that never returns), so the
-/// returned reference is unique.
+/// Must be expanded in code that runs at most once per boot (in the firmware each use
+/// site is in a task that `main` spawns once from a pool of one, and that never
+/// returns; in the HIL tests each test runs once per reset), so the returned
+/// reference is unique.
+#[macro_export]
 macro_rules! dma_ring {
     ($section:literal, $t:ty, $n:expr) => {{
         #[link_section = $section]
@@ -20,4 +22,3 @@ macro_rules! dma_ring {
         unsafe { (*core::ptr::addr_of_mut!(RING)).write([0; $n]) }
     }};
 }
-pub(crate) use dma_ring;
