@@ -30,7 +30,7 @@
 //! README-firmware.md "Clock tree"); [`WaveOut::tick_hz`] reports the real rate.
 
 use embassy_stm32::dma::{
-    Channel, InterruptHandler, ReadableRingBuffer, TransferOptions, WritableRingBuffer,
+    Channel, InterruptHandler, Priority, ReadableRingBuffer, TransferOptions, WritableRingBuffer,
 };
 use embassy_stm32::pac::timer::vals::Ccds;
 use embassy_stm32::timer::low_level::{OutputCompareMode, Timer};
@@ -67,6 +67,15 @@ impl core::fmt::Display for WaveError {
             Self::StatusOverrun => f.write_str("status sample ring overrun"),
         }
     }
+}
+
+/// DMA options for streams whose timing is the line timing: very high priority, so
+/// the other streams on the same controller delay them by at most one transfer
+/// (RM0433 §15.3.3, stream priority arbitration).
+pub fn timing_critical() -> TransferOptions {
+    let mut options = TransferOptions::default();
+    options.priority = Priority::VeryHigh;
+    options
 }
 
 /// A running waveform output (and optional status sampler).
@@ -125,7 +134,7 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
                 request,
                 port.bsrr().as_ptr() as *mut u32,
                 ring,
-                TransferOptions::default(),
+                timing_critical(),
             )
         };
 
@@ -169,7 +178,7 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
                 request,
                 port.idr().as_ptr() as *mut u16,
                 ring,
-                TransferOptions::default(),
+                timing_critical(),
             )
         };
         rb.start();

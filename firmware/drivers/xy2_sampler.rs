@@ -18,7 +18,7 @@
 //!    mode but gated mode each active TRGI edge sets SR.TIF).
 //! 3. ARR = 0xFFFF (the count itself is unused; it only gives a bit counter for
 //!    debugging).
-//! 4. DMA stream: GPIOx_IDR (16-bit, §11.4.5) -> ring, circular, request
+//! 4. DMA stream (very high priority): GPIOx_IDR (16-bit, §11.4.5) -> ring, circular, request
 //!    DMAMUX1 input 16 = TIM1_TRIG (RM0433 §17.3.2, table "DMAMUX1: assignment of
 //!    multiplexer inputs to resources"; embassy-stm32 has no typed trigger-DMA trait,
 //!    so the number is given here, next to TIM1_UP = 15 that embassy's own table
@@ -102,7 +102,7 @@ impl<'d> Xy2Sampler<'d> {
                 TIM1_TRIG_REQUEST,
                 port.idr().as_ptr() as *mut u16,
                 ring,
-                Default::default(),
+                super::wave_out::timing_critical(),
             )
         };
         ring.start();
