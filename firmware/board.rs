@@ -57,7 +57,7 @@
 
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::pac;
-use embassy_stm32::peripherals::{DMA1_CH0, IWDG1, PA15, PC10, PC12, SPI3};
+use embassy_stm32::peripherals::*;
 use embassy_stm32::rcc::{
     AHBPrescaler, APBPrescaler, Hse, HseMode, Pll, PllDiv, PllMul, PllPreDiv, PllSource, Sysclk,
     VoltageScale,
@@ -130,14 +130,23 @@ pub struct Board {
     pub silicon: Silicon,
     /// Core clock in Hz.
     pub core_hz: u32,
-    /// Controller-side pair 3 (XY3 X / HANS CH3) receiver resources.
-    pub pair3_rx: Pair3Rx,
+    /// Everything the protocol drivers take, grouped by function.
+    pub res: Resources,
 }
 
-/// SPI3 with its pins and DMA stream: receives controller-side DB25 pair 3 (`layouts.md`
-/// §2/§3; README-firmware.md allocation table).
-pub struct Pair3Rx {
-    /// SPI3 (32-bit capable).
+/// Controller-side XY2-100 input (README-firmware.md allocation table).
+pub struct Xy2InRes {
+    /// TIM1, counting CLK on ETR.
+    pub tim: Peri<'static, TIM1>,
+    /// Pair 1 (XY2 CLK) on TIM1_ETR.
+    pub clk: Peri<'static, PE7>,
+    /// Trigger DMA stream.
+    pub dma: Peri<'static, DMA2_CH0>,
+}
+
+/// Controller-side XY3-100 X line + SYNC marks.
+pub struct Xy3InRes {
+    /// SPI3 (X line).
     pub spi: Peri<'static, SPI3>,
     /// SCK from the shared SCK bus (AF6).
     pub sck: Peri<'static, PC10>,
@@ -145,8 +154,112 @@ pub struct Pair3Rx {
     pub mosi: Peri<'static, PC12>,
     /// NSS from pair 1 (XY3 SYNC, AF6).
     pub nss: Peri<'static, PA15>,
-    /// DMA1 stream 0.
+    /// DMA1 stream 0 (the SYNC-mark ISR reads its counter).
     pub dma: Peri<'static, DMA1_CH0>,
+    /// SYNC again, as an EXTI input.
+    pub sync: Peri<'static, PA4>,
+    /// EXTI line 4.
+    pub exti: Peri<'static, EXTI4>,
+    /// SCK-bus buffer OE# (low = pair 2 drives the SCK bus).
+    pub sck_buffer_oe: Peri<'static, PF14>,
+}
+
+/// Head-side GPIO waveform output (XY2 / XY3) and XY2 STATUS sampling.
+pub struct WaveRes {
+    /// TIM8: tick timer.
+    pub tim: Peri<'static, TIM8>,
+    /// Update DMA stream (BSRR writes).
+    pub dma: Peri<'static, DMA2_CH1>,
+    /// CC1 DMA stream (STATUS word samples).
+    pub status_dma: Peri<'static, DMA2_CH2>,
+    /// Pairs 1, 2, 3, 4, 5, 7, 8 drivers (port D bits 0, 1, 2, 3, 10, 14, 15).
+    pub pins: WavePins,
+}
+
+/// The port-D pins of the waveform output.
+pub struct WavePins {
+    /// Pair 1.
+    pub p1: Peri<'static, PD0>,
+    /// Pair 2.
+    pub p2: Peri<'static, PD1>,
+    /// Pair 3.
+    pub p3: Peri<'static, PD2>,
+    /// Pair 4.
+    pub p4: Peri<'static, PD3>,
+    /// Pair 5.
+    pub p5: Peri<'static, PD10>,
+    /// Pair 7.
+    pub p7: Peri<'static, PD14>,
+    /// Pair 8.
+    pub p8: Peri<'static, PD15>,
+}
+
+/// Head-side HANS-100 serial output.
+pub struct HansOutRes {
+    /// SAI1 (block A).
+    pub sai: Peri<'static, SAI1>,
+    /// SAI1_SD_A.
+    pub sd: Peri<'static, PE6>,
+    /// DMA stream.
+    pub dma: Peri<'static, DMA2_CH3>,
+}
+
+/// Head-side HANS-100 STATUS input: SPI6 slave clocked by the TIM3 fs clock.
+pub struct HansStatusInRes {
+    /// SPI6 (BDMA, ring in SRAM4).
+    pub spi: Peri<'static, SPI6>,
+    /// SPI6_SCK (AF8), wired to the fs clock output.
+    pub sck: Peri<'static, PB3>,
+    /// SPI6_MOSI (AF5) from the pair-6 receiver.
+    pub mosi: Peri<'static, PG14>,
+    /// BDMA channel 0.
+    pub dma: Peri<'static, BDMA_CH0>,
+    /// TIM3, fs clock generator.
+    pub fs_tim: Peri<'static, TIM3>,
+    /// TIM3_CH2 (AF2): fs out.
+    pub fs_pin: Peri<'static, PC7>,
+}
+
+/// UART7: XY3 backchannel, TX + DE to the controller-side pair-6 driver, RX from the
+/// head-side pair-6 receiver.
+pub struct BackRes {
+    /// UART7.
+    pub uart: Peri<'static, UART7>,
+    /// UART7_RX (AF11) from the head side.
+    pub rx: Peri<'static, PA8>,
+    /// UART7_TX (AF7) to the controller side.
+    pub tx: Peri<'static, PE8>,
+    /// UART7_DE (AF7): controller-side pair-6 driver enable.
+    pub de: Peri<'static, PF8>,
+    /// TX DMA stream.
+    pub tx_dma: Peri<'static, DMA2_CH5>,
+    /// RX DMA stream.
+    pub rx_dma: Peri<'static, DMA2_CH6>,
+}
+
+/// All protocol resources.
+pub struct Resources {
+    /// Controller XY2 in.
+    pub xy2_in: Xy2InRes,
+    /// Controller XY3 in.
+    pub xy3_in: Xy3InRes,
+    /// Controller-side pair 6 driver input as GPIO (XY2 STATUS level out).
+    pub ctrl_status: Peri<'static, PA0>,
+    /// Head waveform out.
+    pub wave: WaveRes,
+    /// Head-side pair 6 receiver as GPIO (XY2 STATUS level; the CC1 sampler reads it
+    /// as port G bit 9).
+    pub head_status: Peri<'static, PG9>,
+    /// Head HANS out.
+    pub hans_out: HansOutRes,
+    /// Head HANS STATUS in.
+    pub hans_status_in: HansStatusInRes,
+    /// Backchannel UART.
+    pub back: BackRes,
+    /// Head-side line-driver enable (high = drivers on).
+    pub head_enable: Peri<'static, PF11>,
+    /// Head-driver source select (low = GPIO waveform, high = HANS serial).
+    pub head_mux: Peri<'static, PF15>,
 }
 
 /// Brings the board up. Order matters:
@@ -183,12 +296,61 @@ pub fn init() -> Board {
         reset_cause,
         silicon,
         core_hz: core_hz(silicon),
-        pair3_rx: Pair3Rx {
-            spi: p.SPI3,
-            sck: p.PC10,
-            mosi: p.PC12,
-            nss: p.PA15,
-            dma: p.DMA1_CH0,
+        res: Resources {
+            xy2_in: Xy2InRes {
+                tim: p.TIM1,
+                clk: p.PE7,
+                dma: p.DMA2_CH0,
+            },
+            xy3_in: Xy3InRes {
+                spi: p.SPI3,
+                sck: p.PC10,
+                mosi: p.PC12,
+                nss: p.PA15,
+                dma: p.DMA1_CH0,
+                sync: p.PA4,
+                exti: p.EXTI4,
+                sck_buffer_oe: p.PF14,
+            },
+            ctrl_status: p.PA0,
+            wave: WaveRes {
+                tim: p.TIM8,
+                dma: p.DMA2_CH1,
+                status_dma: p.DMA2_CH2,
+                pins: WavePins {
+                    p1: p.PD0,
+                    p2: p.PD1,
+                    p3: p.PD2,
+                    p4: p.PD3,
+                    p5: p.PD10,
+                    p7: p.PD14,
+                    p8: p.PD15,
+                },
+            },
+            head_status: p.PG9,
+            hans_out: HansOutRes {
+                sai: p.SAI1,
+                sd: p.PE6,
+                dma: p.DMA2_CH3,
+            },
+            hans_status_in: HansStatusInRes {
+                spi: p.SPI6,
+                sck: p.PB3,
+                mosi: p.PG14,
+                dma: p.BDMA_CH0,
+                fs_tim: p.TIM3,
+                fs_pin: p.PC7,
+            },
+            back: BackRes {
+                uart: p.UART7,
+                rx: p.PA8,
+                tx: p.PE8,
+                de: p.PF8,
+                tx_dma: p.DMA2_CH5,
+                rx_dma: p.DMA2_CH6,
+            },
+            head_enable: p.PF11,
+            head_mux: p.PF15,
         },
     }
 }

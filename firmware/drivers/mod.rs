@@ -1,4 +1,11 @@
 //! Peripheral drivers that embassy-stm32 0.6 lacks, one file each, register sequences
-//! explained with RM0433 section references.
+//! explained with RM0433 section references (`backchannel` only configures embassy's
+//! own UART driver and says why that suffices).
 
+pub mod backchannel;
+pub mod serial_tx;
 pub mod spi_slave_rx;
+pub mod status_level;
+pub mod sync_marks;
+pub mod wave_out;
+pub mod xy2_sampler;

@@ -10,7 +10,8 @@
 //! 2. clippy `-D warnings` for the host crates (all targets) and for the MCU target
 //!    (firmware, `shared` with `defmt`, and `cm7`).
 //! 3. All host tests (`shared` unit + property tests, `host-tests` integration tests).
-//! 4. The firmware release build, then its flash and RAM use.
+//! 4. The firmware release build, then its flash and RAM use; the hardware-in-the-loop
+//!    test binary (`firmware/hil`, run on a board with `cargo test --test hil`).
 //! 5. `cm7` under QEMU (Cortex-M7): `shared`'s on-target tests, then the per-frame
 //!    instruction counts against the budget (`qemu.rs`, `bench.rs`).
 //! 6. A few seconds of every cargo-fuzz target (`fuzz.rs`).
@@ -108,7 +109,8 @@ fn test_all() -> Result {
     );
     cargo(&[host_clippy.as_slice(), DENY_WARNINGS].concat())?;
     let mcu_clippy = ["clippy", "--release", "--target", MCU];
-    cargo(&[&mcu_clippy[..], &["--bins"], DENY_WARNINGS].concat())?;
+    // `--tests` covers the HIL self-test binary (firmware/hil, harness = false).
+    cargo(&[&mcu_clippy[..], &["--bins", "--tests"], DENY_WARNINGS].concat())?;
     let shared = ["-p", "xy-bridge-shared", "--features", "defmt"];
     cargo(&[&mcu_clippy[..], &shared, DENY_WARNINGS].concat())?;
     let cm7 = [
@@ -122,6 +124,8 @@ fn test_all() -> Result {
     cargo(&host_test)?;
 
     firmware_size()?;
+    // The hardware-in-the-loop tests need a board to run, but must always build.
+    cargo(&["build", "--release", "--target", MCU, "--test", "hil"])?;
     qemu::run()?;
     fuzz::run()?;
     eprintln!(

@@ -1,0 +1,131 @@
+//! Tasks. Thread mode (this file and [`status`]): the supervisor (watchdog, laser
+//! gate, health), the status LEDs, the once-a-second statistics and the status
+//! paths. High priority ([`line`], run by the `InterruptExecutor` in `main.rs`): the
+//! per-DMA-half receive -> bridge -> transmit loop. Thread-mode tasks may be slow
+//! without affecting the line timing.
+
+pub mod line;
+pub mod status;
+
+use embassy_stm32::gpio::Output;
+use embassy_stm32::peripherals::IWDG1;
+use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::{bind_interrupts, dma, peripherals, usart, Peri};
+use embassy_time::{Duration, Ticker};
+
+use crate::channels::{Health, Stats, HEAD_STATUS, HEALTH, STATS};
+use crate::drivers::sync_marks::SyncEdgeHandler;
+
+bind_interrupts!(
+    /// Every interrupt a protocol driver uses (README-firmware.md allocation table).
+    pub struct Irqs {
+        DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+        DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
+        DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
+        DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
+        DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
+        DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
+        DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
+        BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
+        EXTI4 => SyncEdgeHandler;
+        UART7 => usart::InterruptHandler<peripherals::UART7>;
+    }
+);
+
+/// Watchdog timeout. The IWDG runs from the 32 kHz LSI, independent of the main clocks,
+/// so it also catches a dead PLL. 250 ms is long against the 50 ms feed period (a feed
+/// may be late by a few long critical sections or a defmt burst) and short enough that
+/// a stalled executor resets the chip -- and with it, via the board's pull-down, forces
+/// the laser gate off -- well before an operator would notice a frozen head. The LSI is
+/// only roughly 32 kHz (DS12110 gives a few percent of spread over temperature and
+/// supply), so the real timeout moves by that much; it stays far above 50 ms.
+const WATCHDOG_TIMEOUT_US: u32 = 250_000;
+
+/// How often the supervisor runs and feeds the watchdog.
+const SUPERVISOR_PERIOD: Duration = Duration::from_millis(50);
+
+/// Owns the watchdog and the laser gate. Runs in the thread-mode executor, so if that
+/// executor stalls (a task that never yields, a deadlock) the watchdog is no longer fed
+/// and resets the chip.
+#[embassy_executor::task]
+pub async fn supervisor(
+    iwdg: Peri<'static, IWDG1>,
+    mut laser_gate: Output<'static>,
+    fault_at_boot: bool,
+) {
+    let mut watchdog = IndependentWatchdog::new(iwdg, WATCHDOG_TIMEOUT_US);
+    watchdog.unleash();
+    defmt::info!("watchdog running, timeout {} us", WATCHDOG_TIMEOUT_US);
+
+    let health = Health {
+        input_valid: false,
+        fault: fault_at_boot,
+    };
+    HEALTH.sender().send(health);
+
+    let mut ticker = Ticker::every(SUPERVISOR_PERIOD);
+    loop {
+        // The laser gate stays off until the bridge reports valid input frames; the
+        // permit from the input decoders is wired in issue 6. Re-asserted every period
+        // so no other code path can leave it on.
+        laser_gate.set_low();
+        watchdog.pet();
+        ticker.next().await;
+    }
+}
+
+/// Green LED blinks at 1 Hz while the thread executor runs; yellow shows "no valid
+/// input" (laser gate held off); red shows a latched fault.
+#[embassy_executor::task]
+pub async fn leds(
+    mut green: Output<'static>,
+    mut yellow: Output<'static>,
+    mut red: Output<'static>,
+) {
+    let mut health = HEALTH.anon_receiver();
+    let mut ticker = Ticker::every(Duration::from_millis(500));
+    loop {
+        green.toggle();
+        if let Some(h) = health.try_changed() {
+            yellow.set_level((!h.input_valid).into());
+            red.set_level(h.fault.into());
+        }
+        ticker.next().await;
+    }
+}
+
+/// Once a second: a defmt summary of what the line tasks counted, and the head's
+/// alarms.
+#[embassy_executor::task]
+pub async fn stats() {
+    let mut head = HEAD_STATUS.anon_receiver();
+    let mut ticker = Ticker::every(Duration::from_secs(1));
+    loop {
+        ticker.next().await;
+        let alarms = head.try_get().map(|s| s.alarms.0).unwrap_or(0);
+        let s = &STATS;
+        defmt::info!(
+            "1 s: in {} halves ({} lost, {} SYNC marks), out {} halves ({} underruns), \
+             back {} packets ({} resyncs, {} errors), status changes {}, alarms {=u32:#x}",
+            Stats::take(&s.input_halves),
+            Stats::take(&s.input_overruns),
+            Stats::take(&s.sync_marks),
+            Stats::take(&s.output_halves),
+            Stats::take(&s.output_underruns),
+            Stats::take(&s.back_packets),
+            Stats::take(&s.back_resyncs),
+            Stats::take(&s.back_errors),
+            Stats::take(&s.status_changes),
+            alarms,
+        );
+    }
+}
+
+/// Backchannel receive ring length (embassy's ring-buffered UART; 1024 bytes = 11 ms
+/// at 921600 baud between reads).
+const BACK_RING: usize = 1024;
+
+/// The backchannel's receive ring in SRAM3 (DMA2). Called once, by `main`.
+pub fn back_ring() -> &'static mut [u8; BACK_RING] {
+    xy_bridge::dma_ring!(".sram3", u8, BACK_RING)
+}
