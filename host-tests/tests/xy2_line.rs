@@ -179,7 +179,7 @@ fn run(r: &Run) -> (usize, usize) {
             let mut w = wave.clone();
             impair::gap(&mut w, roles::CLK, from, to, false).unwrap();
             let lost = before - falling(&w);
-            if lost % 20 != 0 {
+            if !lost.is_multiple_of(20) {
                 wave = w;
                 break;
             }
