@@ -22,10 +22,12 @@
 //! line explicitly, so a slot never depends on what the previous slot left behind.
 //!
 //! # Cost
-//! Per-pin set/reset masks are computed once in [`Transmitter::new`]. A data bit `d`
-//! selects the set or the reset half of its pin's mask with a shift,
-//! `(mask << 16) >> (16 * d)`, so writing a bit is branch-free: four shifts, an AND and
-//! an OR per line. A missing Z line has mask 0 and contributes nothing.
+//! Per-pin masks are computed once in [`Transmitter::new`]. The words are left-aligned
+//! so the bit being sent is bit 31; an arithmetic shift turns it into all-ones or
+//! zero, which selects the pin's mask without a branch. The pins to set are ORed
+//! together; the data pins not set are reset (`(data ^ set) << 16`). SYNC and CLK come
+//! from two constant bases (bit 20 drops SYNC). A missing Z line has mask 0 and
+//! contributes nothing.
 //!
 //! # Errors
 //! A frame the link cannot carry ([`EncodeError`]) is never half-sent: its slot is filled
@@ -232,20 +234,34 @@ impl Transmitter {
 
     /// Writes the 40 bit words and the idle tail; `slot` has the right length.
     fn fill(&self, slot: &mut [u32], [x, y, z]: [u32; 3]) {
-        let words = [SYNC_PATTERN, x, y, z];
+        let [sync, mx, my, mz] = self.lanes;
+        let data = mx | my | mz;
+        // SYNC is high for bits 1..19 and low for bit 20: two constant bases.
+        let high = self.clk_set | sync;
+        let last = self.clk_set | sync << 16;
         let clk_reset = self.clk_set << 16;
+        // Left-align the words so the bit being sent is always bit 31.
+        let align = 32 - FRAME_BITS;
+        let (mut x, mut y, mut z) = (x << align, y << align, z << align);
+        let data_word = |x: u32, y: u32, z: u32| {
+            // All ones where bit 31 is 1: selects the pin's mask without a branch.
+            let set = (msb_mask(x) & mx) | (msb_mask(y) & my) | (msb_mask(z) & mz);
+            set | (data ^ set) << 16
+        };
         let (bits, tail) = slot.split_at_mut(FRAME_TICKS.min(slot.len()));
-        for (pair, shift) in bits.chunks_exact_mut(2).zip((0..FRAME_BITS).rev()) {
-            let mut first = self.clk_set;
-            for (&mask, &word) in self.lanes.iter().zip(&words) {
-                let level = word >> shift & 1;
-                first |= (mask << 16) >> (level << 4);
-            }
-            if let [a, b] = pair {
-                *a = first;
-                *b = clk_reset;
-            }
+        let mut pairs = bits.as_chunks_mut::<2>().0.iter_mut();
+        for pair in pairs.by_ref().take(FRAME_BITS as usize - 1) {
+            *pair = [high | data_word(x, y, z), clk_reset];
+            (x, y, z) = (x << 1, y << 1, z << 1);
+        }
+        if let Some(pair) = pairs.next() {
+            *pair = [last | data_word(x, y, z), clk_reset];
         }
         tail.fill(self.idle);
     }
+}
+
+/// All ones if bit 31 of `w` is set, else 0.
+const fn msb_mask(w: u32) -> u32 {
+    ((w as i32) >> 31) as u32
 }
