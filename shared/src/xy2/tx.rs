@@ -10,8 +10,7 @@
 //! | second | reset (falling edge: the receiver samples here) | untouched |
 //!
 //! so data changes on the rising edge and is stable for half a bit before and after the
-//! sampling edge (notes, "Timing"). SYNC is driven like a fourth data line carrying the
-//! constant pattern `1111_1111_1111_1111_1110` (high for bits 1..19, low for bit 20).
+//! sampling edge (notes, "Timing"). SYNC goes high with bit 1 and low with bit 20.
 //!
 //! Each frame occupies a fixed number of ticks, `frame period / tick period`, at least
 //! 40: 100 kHz frames at a 2 MHz bit clock (4 MHz ticks) are exactly 40 ticks, 20 bits
@@ -39,8 +38,6 @@ use super::frame::{encode, EncodeError, Frame, LinkConfig, FRAME_BITS};
 use super::rx::{check_pins, PinError};
 use crate::model::Axis;
 
-/// SYNC's level per bit, as a frame word: high for bits 1..19, low for bit 20.
-const SYNC_PATTERN: u32 = 0xF_FFFE;
 /// Ticks the 20 bits of a frame take.
 pub const FRAME_TICKS: usize = 2 * FRAME_BITS as usize;
 
