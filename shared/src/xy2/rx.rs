@@ -208,7 +208,8 @@ pub struct Counters {
 }
 
 /// The receiver state machine (see the module docs).
-#[derive(Clone, Debug)]
+#[derive(Clone, PartialEq, Eq, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Receiver {
     link: LinkConfig,
     /// Shift amounts of SYNC, X, Y, Z in the port word (all below 16).
