@@ -5,6 +5,7 @@
 //! [`GROUPS`].
 
 pub mod model;
+pub mod xy2;
 pub mod xy3;
 
 /// Frames per measured window (the count per frame is an average over varied data).
@@ -45,4 +46,4 @@ impl Window {
 
 /// Every workload group, in the order they run. The first workload of the first group
 /// must stay the empty calibration window.
-pub const GROUPS: &[&[Workload]] = &[model::WORKLOADS, xy3::WORKLOADS];
+pub const GROUPS: &[&[Workload]] = &[model::WORKLOADS, xy2::WORKLOADS, xy3::WORKLOADS];

@@ -61,6 +61,11 @@
 //!   link's policy) in either mode, because the sources describe a 16-bit word clocked
 //!   like a 16-bit position frame.
 //!
+//! # Line level
+//! [`rx`] turns the input port samples (one per CLK falling edge) into frame periods,
+//! [`tx`] fills the output DMA ring with BSRR words, and [`status_line`] handles the
+//! STATUS line in both forms and directions; all are sans-IO.
+//!
 //! # Neutral model
 //! See [`AxisItem`], [`Frame::to_model`], [`Frame::from_position`],
 //! [`StatusWord::alarms`], [`StatusWord::from_alarms`] and [`Health::alarms`]: a bare
@@ -69,7 +74,10 @@
 
 mod frame;
 mod neutral;
+pub mod rx;
 mod status;
+pub mod status_line;
+pub mod tx;
 #[cfg(any(test, feature = "vectors"))]
 #[doc(hidden)]
 pub mod vectors;
@@ -83,3 +91,5 @@ pub use status::{Health, Polarity, StatusError, StatusLevel, StatusWord};
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tests_line;

@@ -1,0 +1,264 @@
+//! The XY2-100 line transmitter: frames -> BSRR words for the output DMA (layout item 4).
+//!
+//! # Output
+//! A timer ticks at twice the bit clock and each tick DMAs one `u32` into the output
+//! port's BSRR (low half sets pins, high half resets them). Every bit takes two ticks:
+//!
+//! | tick | CLK | SYNC, X, Y, Z |
+//! |---|---|---|
+//! | first | set (rising edge) | set or reset to the bit's level |
+//! | second | reset (falling edge: the receiver samples here) | untouched |
+//!
+//! so data changes on the rising edge and is stable for half a bit before and after the
+//! sampling edge (notes, "Timing"). SYNC goes high with bit 1 and low with bit 20.
+//!
+//! Each frame occupies a fixed number of ticks, `frame period / tick period`, at least
+//! 40: 100 kHz frames at a 2 MHz bit clock (4 MHz ticks) are exactly 40 ticks, 20 bits
+//! back to back; 200 kHz at 4 MHz is XY2-200. Ticks after the 40th are idle: CLK, SYNC
+//! and data low, so the head sees no clock edge until the next frame (a gated clock).
+//! The ring holds two halves of K frames; [`Transmitter::write_half`] fills a half,
+//! [`Transmitter::write_frame`] one slot. Every bit's first word sets or resets every
+//! line explicitly, so a slot never depends on what the previous slot left behind.
+//!
+//! # Cost
+//! Per-pin masks are computed once in [`Transmitter::new`]. The words are left-aligned
+//! so the bit being sent is bit 31; an arithmetic shift turns it into all-ones or
+//! zero, which selects the pin's mask without a branch. The pins to set are ORed
+//! together; the data pins not set are reset (`(data ^ set) << 16`). SYNC and CLK come
+//! from two constant bases (bit 20 drops SYNC). A missing Z line has mask 0 and
+//! contributes nothing.
+//!
+//! # Errors
+//! A frame the link cannot carry ([`EncodeError`]) is never half-sent: its slot is filled
+//! with idle words (the head sees no frame) and the error is returned.
+
+use core::fmt;
+
+use super::frame::{encode, EncodeError, Frame, LinkConfig, FRAME_BITS};
+use super::rx::{check_pins, PinError};
+use crate::model::Axis;
+
+/// Ticks the 20 bits of a frame take.
+pub const FRAME_TICKS: usize = 2 * FRAME_BITS as usize;
+
+/// Which output port bit drives which line (bit indices 0..15).
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct OutPinMap {
+    /// CLK.
+    pub clk: u8,
+    /// SYNC.
+    pub sync: u8,
+    /// X data.
+    pub x: u8,
+    /// Y data.
+    pub y: u8,
+    /// Z data, if driven.
+    pub z: Option<u8>,
+}
+
+/// The frames of one frame period, one per axis.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct TxFrame {
+    /// X frame.
+    pub x: Frame,
+    /// Y frame.
+    pub y: Frame,
+    /// Z frame; `None` keeps Z low for the period (an all-zero word, which every
+    /// receiver rejects by its header). Ignored without a Z pin.
+    pub z: Option<Frame>,
+}
+
+/// Why the transmitter cannot be built or could not fill a buffer.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum TxError {
+    /// The pin map is unusable.
+    Pins(PinError),
+    /// Fewer ticks per frame than the 40 a frame needs.
+    TicksPerFrame {
+        /// The configured value.
+        ticks: usize,
+    },
+    /// A slot or half-buffer has the wrong length for the frames given.
+    Length {
+        /// Words needed.
+        expected: usize,
+        /// Words given.
+        got: usize,
+    },
+    /// A frame could not be encoded on this link; its slot was filled with idle.
+    Encode {
+        /// The axis whose frame failed.
+        axis: Axis,
+        /// Why.
+        error: EncodeError,
+    },
+}
+
+impl fmt::Display for TxError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Pins(e) => write!(f, "output pins: {e}"),
+            Self::TicksPerFrame { ticks } => {
+                write!(f, "{ticks} ticks per frame, at least {FRAME_TICKS} needed")
+            }
+            Self::Length { expected, got } => {
+                write!(f, "buffer of {got} words, {expected} needed")
+            }
+            Self::Encode { axis, error } => write!(f, "{axis:?} frame: {error}"),
+        }
+    }
+}
+
+/// The transmitter: precomputed masks plus the frame geometry (see the module docs).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Transmitter {
+    link: LinkConfig,
+    ticks: usize,
+    has_z: bool,
+    /// BSRR set bit of CLK.
+    clk_set: u32,
+    /// Set bits of SYNC, X, Y, Z (0 for a missing Z).
+    lanes: [u32; 4],
+    /// Resets CLK, SYNC and the data lines.
+    idle: u32,
+}
+
+impl Transmitter {
+    /// A transmitter on `pins`, `ticks_per_frame` words per frame (at least 40).
+    pub fn new(pins: OutPinMap, ticks_per_frame: usize, link: LinkConfig) -> Result<Self, TxError> {
+        check_pins(&[
+            Some(pins.clk),
+            Some(pins.sync),
+            Some(pins.x),
+            Some(pins.y),
+            pins.z,
+        ])
+        .map_err(TxError::Pins)?;
+        if ticks_per_frame < FRAME_TICKS {
+            return Err(TxError::TicksPerFrame {
+                ticks: ticks_per_frame,
+            });
+        }
+        let bit = |b: u8| 1u32 << b;
+        let lanes = [
+            bit(pins.sync),
+            bit(pins.x),
+            bit(pins.y),
+            pins.z.map_or(0, bit),
+        ];
+        let all = bit(pins.clk) | lanes.iter().fold(0, |a, &m| a | m);
+        Ok(Transmitter {
+            link,
+            ticks: ticks_per_frame,
+            has_z: pins.z.is_some(),
+            clk_set: bit(pins.clk),
+            lanes,
+            idle: all << 16,
+        })
+    }
+
+    /// Words per frame slot.
+    pub const fn ticks_per_frame(&self) -> usize {
+        self.ticks
+    }
+
+    /// The idle word (CLK, SYNC and data low).
+    pub const fn idle_word(&self) -> u32 {
+        self.idle
+    }
+
+    /// Encodes `frame` into `slot` (exactly [`Self::ticks_per_frame`] words).
+    pub fn write_frame(&self, slot: &mut [u32], frame: &TxFrame) -> Result<(), TxError> {
+        self.check_len(slot, 1)?;
+        match self.encode(frame) {
+            Ok(words) => {
+                self.fill(slot, words);
+                Ok(())
+            }
+            Err(e) => {
+                slot.fill(self.idle);
+                Err(e)
+            }
+        }
+    }
+
+    /// Writes already encoded 20-bit words (X, Y, Z; Z ignored without a Z pin) into
+    /// `slot` unchanged, e.g. to pass frames through. Bits above bit 19 are ignored.
+    pub fn write_words(&self, slot: &mut [u32], words: [u32; 3]) -> Result<(), TxError> {
+        self.check_len(slot, 1)?;
+        self.fill(slot, words);
+        Ok(())
+    }
+
+    /// Encodes one frame per slot into a half-buffer of `frames.len()` slots. A frame
+    /// that fails to encode leaves its slot idle; the others are still written and the
+    /// first error is returned.
+    pub fn write_half(&self, half: &mut [u32], frames: &[TxFrame]) -> Result<(), TxError> {
+        self.check_len(half, frames.len())?;
+        let mut result = Ok(());
+        for (slot, frame) in half.chunks_exact_mut(self.ticks).zip(frames) {
+            if let Err(e) = self.write_frame(slot, frame) {
+                result = result.and(Err(e));
+            }
+        }
+        result
+    }
+
+    fn check_len(&self, buf: &[u32], frames: usize) -> Result<(), TxError> {
+        let expected = self.ticks.saturating_mul(frames);
+        if buf.len() == expected {
+            Ok(())
+        } else {
+            Err(TxError::Length {
+                expected,
+                got: buf.len(),
+            })
+        }
+    }
+
+    fn encode(&self, frame: &TxFrame) -> Result<[u32; 3], TxError> {
+        let enc = |axis, f| encode(f, &self.link).map_err(|error| TxError::Encode { axis, error });
+        let z = match frame.z {
+            Some(f) if self.has_z => enc(Axis::Z, f)?,
+            _ => 0,
+        };
+        Ok([enc(Axis::X, frame.x)?, enc(Axis::Y, frame.y)?, z])
+    }
+
+    /// Writes the 40 bit words and the idle tail; `slot` has the right length.
+    fn fill(&self, slot: &mut [u32], [x, y, z]: [u32; 3]) {
+        let [sync, mx, my, mz] = self.lanes;
+        let data = mx | my | mz;
+        // SYNC is high for bits 1..19 and low for bit 20: two constant bases.
+        let high = self.clk_set | sync;
+        let last = self.clk_set | sync << 16;
+        let clk_reset = self.clk_set << 16;
+        // Left-align the words so the bit being sent is always bit 31.
+        let align = 32 - FRAME_BITS;
+        let (mut x, mut y, mut z) = (x << align, y << align, z << align);
+        let data_word = |x: u32, y: u32, z: u32| {
+            // All ones where bit 31 is 1: selects the pin's mask without a branch.
+            let set = (msb_mask(x) & mx) | (msb_mask(y) & my) | (msb_mask(z) & mz);
+            set | (data ^ set) << 16
+        };
+        let (bits, tail) = slot.split_at_mut(FRAME_TICKS.min(slot.len()));
+        let mut pairs = bits.as_chunks_mut::<2>().0.iter_mut();
+        for pair in pairs.by_ref().take(FRAME_BITS as usize - 1) {
+            *pair = [high | data_word(x, y, z), clk_reset];
+            (x, y, z) = (x << 1, y << 1, z << 1);
+        }
+        if let Some(pair) = pairs.next() {
+            *pair = [last | data_word(x, y, z), clk_reset];
+        }
+        tail.fill(self.idle);
+    }
+}
+
+/// All ones if bit 31 of `w` is set, else 0.
+const fn msb_mask(w: u32) -> u32 {
+    ((w as i32) >> 31) as u32
+}
