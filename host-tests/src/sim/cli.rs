@@ -326,6 +326,9 @@ fn finish(link: &LinkArgs, w: &WaveArgs, mut enc: Encoded) -> Result<Encoded, Si
         let to = map.resolve(s.name()).to_owned();
         s.set_name(to);
     }
+    if enc.starts_ns.len() >= encode::Progress::MIN_ITEMS {
+        eprintln!("writing {} ...", w.output.display());
+    }
     vcd_io::write_vcd_file(&w.output, &enc.wave, WriteTimescale::Ps)?;
     Ok(enc)
 }
