@@ -802,6 +802,8 @@ fn bad_input_fails_cleanly() {
         "line 1:",
     );
     enc("h.jsonl", "xy2", "not json", "line 1:");
+    enc("i.jsonl", "hans", "\n\n", "no frames");
+    enc("j.jsonl", "xy3-back", "{\"error\":\"lost\"}\n", "no frames");
 
     // Bad options.
     let o = run(&[

@@ -205,7 +205,7 @@ pub fn hans(
     // Normal mode needs its one channel only; the others need all five.
     let (r, d): (Vec<&str>, Vec<&str>) = match mode {
         HansMode::Normal(n) => {
-            let i = usize::from(n - 1);
+            let i = usize::from(n.saturating_sub(1));
             (
                 roles::HANS_CHANNELS.get(i..=i).unwrap_or(&[]).to_vec(),
                 names::HANS.get(i..=i).unwrap_or(&[]).to_vec(),

@@ -46,6 +46,13 @@ pub struct Encoded {
     pub starts_ns: Vec<u64>,
 }
 
+fn no_frames() -> SimError {
+    SimError::BadOption {
+        option: "--frames",
+        message: "the input has no frames".to_owned(),
+    }
+}
+
 fn json_err(line: usize, message: impl Into<String>) -> SimError {
     SimError::Json {
         line,
@@ -196,7 +203,7 @@ pub fn forward(
         _ => &names::XY3_DATA,
     };
     let Some((first_line, first)) = records.first() else {
-        return Err(json_err(0, "no frames in the input"));
+        return Err(no_frames());
     };
     let lanes: Vec<&'static str> = all
         .iter()
@@ -323,6 +330,9 @@ fn rename(wave: &mut Waveform, from: &str, to: &str) {
 /// `start_ns`.
 pub fn hans(records: &[(usize, HansRecord)], start_ns: f64) -> Result<Encoded, SimError> {
     let n = records.len();
+    if n == 0 {
+        return Err(no_frames());
+    }
     let mut stream = vec![0u8; (n * hans::FRAME_BITS).div_ceil(8)];
     let mut progress = Progress::new("encode", n);
     for (i, (line, rec)) in records.iter().enumerate() {
@@ -377,17 +387,19 @@ pub fn back(
     baud: f64,
     start_ns: f64,
 ) -> Result<Encoded, SimError> {
-    let packets: Vec<(usize, Option<u64>, Vec<u8>)> = records
-        .iter()
-        .filter_map(|(line, r)| match r {
-            BackRecord::Packet { t_ns, ty, payload } => {
-                let mut bytes = vec![xy3::back::wire::HEAD, *ty, payload.len() as u8];
-                bytes.extend_from_slice(payload);
-                Some((*line, *t_ns, bytes))
-            }
-            BackRecord::Error { .. } => None,
-        })
-        .collect();
+    let mut packets: Vec<(usize, Option<u64>, Vec<u8>)> = Vec::new();
+    for (line, r) in records {
+        if let BackRecord::Packet { t_ns, ty, payload } = r {
+            let len = u8::try_from(payload.len())
+                .map_err(|_| json_err(*line, "payload longer than 255 bytes"))?;
+            let mut bytes = vec![xy3::back::wire::HEAD, *ty, len];
+            bytes.extend_from_slice(payload);
+            packets.push((*line, *t_ns, bytes));
+        }
+    }
+    if packets.is_empty() {
+        return Err(no_frames());
+    }
     let times: Vec<(usize, Option<u64>)> = packets.iter().map(|(l, t, _)| (*l, *t)).collect();
     let explicit = explicit_times(&times)?;
     let bit = PS_PER_S / crate::line::positive("baud", baud)?;
