@@ -878,3 +878,96 @@ fn missing_engines_say_so() {
         assert!(o.stdout.is_empty());
     }
 }
+
+// ---------------------------------------------------------------- formats
+
+#[test]
+fn json_lines_print_and_parse_exactly_as_documented() {
+    #[rustfmt::skip]
+    let forward: &[(ForwardRecord, &str)] = &[
+        (
+            ForwardRecord {
+                t_ns: Some(1000),
+                x: Some(Channel::Pos { pos: 62258, bits: 16 }),
+                y: Some(Channel::Cmd { cmd: 20481, frame_bits: None }),
+                z: Some(Channel::Error("parity".to_owned())),
+                ..ForwardRecord::default()
+            },
+            r#"{"t_ns":1000,"x":{"pos":62258,"bits":16},"y":{"cmd":20481},"z":{"error":"parity"}}"#,
+        ),
+        (
+            ForwardRecord {
+                t_ns: Some(0),
+                u: Some(Channel::Cmd { cmd: 0x88000, frame_bits: Some(32) }),
+                w: Some(Channel::Pos { pos: 0x3FF_FFFF, bits: 26 }),
+                ..ForwardRecord::default()
+            },
+            r#"{"t_ns":0,"u":{"cmd":557056,"frame_bits":32},"w":{"pos":67108863,"bits":26}}"#,
+        ),
+    ];
+    for (rec, line) in forward {
+        assert_eq!(jsonl::to_line(rec), *line);
+        assert_eq!(
+            jsonl::parse::<ForwardRecord>(line).unwrap(),
+            vec![(1, rec.clone())]
+        );
+    }
+    let hans = [
+        (
+            HansRecord::Frame {
+                t_ns: Some(5),
+                data: [0, 0x8_0000, 0xF_FFFF],
+            },
+            r#"{"t_ns":5,"x":{"pos":0,"bits":20},"y":{"pos":524288,"bits":20},"z":{"pos":1048575,"bits":20}}"#,
+        ),
+        (
+            HansRecord::Error {
+                t_ns: Some(7),
+                error: "stop bits".to_owned(),
+            },
+            r#"{"t_ns":7,"error":"stop bits"}"#,
+        ),
+    ];
+    for (rec, line) in &hans {
+        assert_eq!(jsonl::to_line(rec), *line);
+        assert_eq!(
+            jsonl::parse::<HansRecord>(line).unwrap(),
+            vec![(1, rec.clone())]
+        );
+    }
+    let back = [
+        (
+            BackRecord::Packet {
+                t_ns: Some(9),
+                ty: 7,
+                payload: vec![0x00, 0xAB],
+            },
+            r#"{"t_ns":9,"type":7,"payload":"00ab"}"#,
+        ),
+        (
+            BackRecord::Error {
+                t_ns: Some(3),
+                error: "lost sync".to_owned(),
+            },
+            r#"{"t_ns":3,"error":"lost sync"}"#,
+        ),
+    ];
+    for (rec, line) in &back {
+        assert_eq!(jsonl::to_line(rec), *line);
+        assert_eq!(
+            jsonl::parse::<BackRecord>(line).unwrap(),
+            vec![(1, rec.clone())]
+        );
+    }
+    // Mixed-shape channels and records are rejected.
+    for bad in [
+        r#"{"x":{"pos":1,"cmd":2}}"#,
+        r#"{"x":{"pos":1}}"#,
+        r#"{"x":{"cmd":1048576}}"#,
+        r#"{"x":{"pos":5,"bits":17}}"#,
+    ] {
+        assert!(jsonl::parse::<ForwardRecord>(bad).is_err(), "{bad}");
+    }
+    assert!(jsonl::parse::<HansRecord>(r#"{"x":{"pos":1,"bits":20},"error":"e"}"#).is_err());
+    assert!(jsonl::parse::<BackRecord>(r#"{"type":7,"error":"e"}"#).is_err());
+}
