@@ -6,11 +6,13 @@
 //! - [`vcd_io`] — VCD captures in, VCD files out;
 //! - [`line`] — waveforms <-> the firmware's DMA buffers, and a serial frame generator;
 //! - [`impair`] — reproducible line impairments (rate offset, jitter, skew, noise,
-//!   stuck/broken channels, clock gaps).
+//!   stuck/broken channels, clock gaps);
+//! - [`sim`] — the `bridge-sim` tool's commands and JSON-lines formats.
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
 pub mod impair;
 pub mod line;
+pub mod sim;
 pub mod vcd_io;
 pub mod wave;
