@@ -74,8 +74,8 @@ pub struct Step {
 /// Clock recovery and framing state of one channel.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub struct ChannelRx {
-    /// Configured samples per bit (Q16).
-    nominal: i32,
+    /// Shortest and longest plausible frame period (Q16): the nominal ±5 %.
+    bounds: (i32, i32),
     /// Tracked samples per bit (Q16).
     ratio: i32,
     /// Tracked frame period (Q16 samples).
@@ -102,8 +102,9 @@ pub struct ChannelRx {
 impl ChannelRx {
     /// A channel decoder for `ratio_q16` samples per bit (16 fraction bits).
     pub const fn new(ratio_q16: i32) -> ChannelRx {
+        let period = ratio_q16 as i64 * BITS as i64;
         ChannelRx {
-            nominal: ratio_q16,
+            bounds: (clamp_i32(period * 95 / 100), clamp_i32(period * 105 / 100)),
             ratio: ratio_q16,
             period: ratio_q16.saturating_mul(BITS),
             start: 0,
@@ -128,15 +129,10 @@ impl ChannelRx {
         self.ratio
     }
 
-    /// Shortest and longest plausible frame period (Q16): the nominal ±5 %.
+    /// Shortest and longest plausible frame period (Q16), precomputed: the
+    /// divisions would cost more than a word's decoding.
     fn period_bounds(&self) -> (i32, i32) {
-        let p = i64::from(self.nominal) * i64::from(BITS);
-        let lo = p * 95 / 100;
-        let hi = p * 105 / 100;
-        (
-            i32::try_from(lo).unwrap_or(i32::MAX),
-            i32::try_from(hi).unwrap_or(i32::MAX),
-        )
+        self.bounds
     }
 
     /// Feeds one 16-sample word (bit 15 = earliest sample).
@@ -325,6 +321,17 @@ impl ChannelRx {
             ones
         };
         self.prev = w;
+    }
+}
+
+/// `v` saturated to `i32`.
+const fn clamp_i32(v: i64) -> i32 {
+    if v > i32::MAX as i64 {
+        i32::MAX
+    } else if v < i32::MIN as i64 {
+        i32::MIN
+    } else {
+        v as i32
     }
 }
 
