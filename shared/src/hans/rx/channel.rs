@@ -44,6 +44,8 @@ const HALF: i32 = 1 << (FRAC - 1);
 const WORD: i32 = 16 << FRAC;
 /// Frames after which the alpha-beta gains stop shrinking.
 const FIT_FRAMES: i64 = 128;
+/// Failing patterns in a row after which a lock is abandoned.
+pub const RELOCK_AFTER: u8 = 3;
 /// Bits in a frame as the fixed-point multiplier.
 const BITS: i32 = FRAME_BITS as i32;
 
@@ -96,6 +98,8 @@ pub struct ChannelRx {
     run: u32,
     /// Measurements in the current lock (selects the alpha-beta gains).
     fits: i64,
+    /// Consecutive patterns that failed their checks.
+    failures: u8,
     state: State,
 }
 
@@ -115,6 +119,7 @@ impl ChannelRx {
             prev: 0,
             run: 0,
             fits: 0,
+            failures: 0,
             state: State::Hunt,
         }
     }
@@ -133,6 +138,24 @@ impl ChannelRx {
     /// divisions would cost more than a word's decoding.
     fn period_bounds(&self) -> (i32, i32) {
         self.bounds
+    }
+
+    /// Tells the channel whether its last pattern passed the checks. A lock that
+    /// yields [`RELOCK_AFTER`] failing patterns in a row is taken to be a false lock
+    /// (on a data edge that happened to repeat a frame apart, or a rate far off):
+    /// the channel hunts again. Returns true when it gave up its lock.
+    pub fn checked(&mut self, ok: bool) -> bool {
+        if ok {
+            self.failures = 0;
+            return false;
+        }
+        self.failures = self.failures.saturating_add(1);
+        if self.failures >= RELOCK_AFTER && self.locked() {
+            self.failures = 0;
+            self.state = State::Hunt;
+            return true;
+        }
+        false
     }
 
     /// Feeds one 16-sample word (bit 15 = earliest sample).

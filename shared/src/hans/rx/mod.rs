@@ -334,10 +334,14 @@ impl HansRx {
         // Every present pattern is checked on its own for the channel's counters.
         let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
         for (n, p) in patterns.iter().enumerate() {
-            let (Some(p), Some(stats)) = (p, self.stats.get_mut(n)) else {
+            let (Some(p), Some(stats), Some(ch)) =
+                (p, self.stats.get_mut(n), self.channels.get_mut(n))
+            else {
                 continue;
             };
-            match Frame::decode(*p) {
+            let decoded = Frame::decode(*p);
+            let relock = ch.checked(decoded.is_ok());
+            match decoded {
                 Ok(f) => {
                     stats.frames_ok = stats.frames_ok.wrapping_add(1);
                     if let Some(v) = verified.get_mut(n) {
@@ -351,6 +355,13 @@ impl HansRx {
                         kind: FaultKind::CheckFailed,
                     });
                 }
+            }
+            if relock {
+                stats.resyncs = stats.resyncs.wrapping_add(1);
+                sink(RxEvent::Fault {
+                    channel: Some(number(n)),
+                    kind: FaultKind::Resync,
+                });
             }
         }
         let get = |c: u8| {
