@@ -15,7 +15,7 @@ use host_tests::wave::{Ps, Waveform};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use shared::hans::rx::{HansRx, Mode, RxEvent};
-use shared::hans::{write_slot, Frame, FRAME_BITS, RING_BYTES, RING_SLOTS, WORD_MAX};
+use shared::hans::{write_slot, Frame, RING_BYTES, RING_SLOTS, WORD_MAX};
 
 const BIT_PS: f64 = 80_000.0;
 
@@ -29,21 +29,16 @@ fn random_frames(n: usize, rng: &mut ChaCha8Rng) -> Vec<Frame> {
 }
 
 /// The bytes the transmit ring sends over successive DMA turns (`write_slot` per
-/// frame), concatenated.
+/// frame), concatenated. The frame count must fill whole turns (8 frames).
 fn tx_bytes(frames: &[Frame]) -> Vec<u8> {
+    assert!(frames.len().is_multiple_of(RING_SLOTS), "whole DMA turns only");
     let mut out = Vec::new();
     for turn in frames.chunks(RING_SLOTS) {
         let mut ring = [0u8; RING_BYTES];
         for (slot, f) in turn.iter().enumerate() {
             write_slot(&mut ring, slot, f).unwrap();
         }
-        // A partial last turn is cut after its last frame.
-        let bits = turn.len() * FRAME_BITS;
-        out.extend_from_slice(&ring[..bits.div_ceil(8)]);
-        if bits % 8 != 0 {
-            // Keep whole turns only: the generator uses multiples of 8 frames.
-            panic!("frame count must be a multiple of 8");
-        }
+        out.extend_from_slice(&ring);
     }
     out
 }

@@ -210,7 +210,7 @@ impl ChannelRx {
             acc = acc << 1 | (x << shift) >> 31;
             nbits += 1;
             next += self.ratio;
-            if nbits % 32 == 0 {
+            if nbits.is_multiple_of(32) {
                 if let Some(g) = self.groups.get_mut((nbits / 32 - 1) as usize) {
                     *g = acc;
                 }
