@@ -31,7 +31,10 @@ fn random_frames(n: usize, rng: &mut ChaCha8Rng) -> Vec<Frame> {
 /// The bytes the transmit ring sends over successive DMA turns (`write_slot` per
 /// frame), concatenated. The frame count must fill whole turns (8 frames).
 fn tx_bytes(frames: &[Frame]) -> Vec<u8> {
-    assert!(frames.len().is_multiple_of(RING_SLOTS), "whole DMA turns only");
+    assert!(
+        frames.len().is_multiple_of(RING_SLOTS),
+        "whole DMA turns only"
+    );
     let mut out = Vec::new();
     for turn in frames.chunks(RING_SLOTS) {
         let mut ring = [0u8; RING_BYTES];

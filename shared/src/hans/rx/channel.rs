@@ -43,7 +43,7 @@ const HALF: i32 = 1 << (FRAC - 1);
 /// One 16-sample ring word.
 const WORD: i32 = 16 << FRAC;
 /// Frames after which the alpha-beta gains stop shrinking.
-const FIT_FRAMES: i64 = 128;
+const FIT_FRAMES: i32 = 128;
 /// Failing patterns in a row after which a lock is abandoned.
 pub const RELOCK_AFTER: u8 = 3;
 /// Bits in a frame as the fixed-point multiplier.
@@ -97,7 +97,7 @@ pub struct ChannelRx {
     /// Length in samples of the run of ones that ends with the previous word.
     run: u32,
     /// Measurements in the current lock (selects the alpha-beta gains).
-    fits: i64,
+    fits: i32,
     /// Consecutive patterns that failed their checks.
     failures: u8,
     state: State,
@@ -163,6 +163,11 @@ impl ChannelRx {
         let w = u32::from(word);
         let x = self.prev << 16 | w;
         let mut step = Step::default();
+        // Fast path: mid-frame, the word only feeds the sampler.
+        if self.state == State::Bits && self.sample(x, &mut step) {
+            self.end_word(w);
+            return step;
+        }
         // Samples before `from` (in this word) were already looked at by an earlier
         // state in this same word.
         let mut from: i32 = 0;
@@ -203,6 +208,23 @@ impl ChannelRx {
         let mut acc = self.acc;
         let mut nbits = self.nbits;
         let mut next = self.next;
+        // At 3..4 samples per bit a word holds at most 6 bit centres. When they can
+        // neither complete a 32-bit group nor the frame, the loop needs no checks
+        // (the common case, about four words in five).
+        if nbits % 32 + 6 < 32 && nbits + 6 < FRAME_BITS as u32 {
+            let ratio = self.ratio;
+            while next < WORD {
+                // `next` >= -16 samples here (see `end_word`), so the shift is 0..=31.
+                let shift = ((next >> FRAC) + 16) as u32 & 31;
+                acc = acc << 1 | (x << shift) >> 31;
+                nbits += 1;
+                next += ratio;
+            }
+            self.acc = acc;
+            self.nbits = nbits;
+            self.next = next;
+            return true;
+        }
         while next < WORD {
             // `x` holds the previous word in bits 31..16: position p (-16..15) is bit
             // 15 - p; shifting it to bit 31 and back isolates it.
@@ -245,18 +267,21 @@ impl ChannelRx {
     fn track(&mut self, s: i32) {
         let meas = (s << FRAC) - HALF;
         let pred = self.start.saturating_add(self.period);
-        let err = i64::from(meas) - i64::from(pred);
-        // Alpha-beta gains of a least-squares line fit over k points, k capped.
+        // Alpha-beta gains of a least-squares line fit over the last k start edges
+        // (k capped at FIT_FRAMES): phase 2(2k-1)/(k(k+1)), period 6/(k(k+1)).
+        // The seek window bounds the error to about ±2 bits (< 2^20 in Q16), so the
+        // products below stay far inside i32 (k(k+1) <= 16512, 2(2k-1) <= 510) and
+        // the divisions are single instructions on the M7.
+        let err = meas.saturating_sub(pred).clamp(-(1 << 21), 1 << 21);
         self.fits = (self.fits + 1).min(FIT_FRAMES);
         let k = self.fits;
-        let start = i64::from(pred) + err * 2 * (2 * k - 1) / (k * (k + 1));
-        let period = i64::from(self.period) + err * 6 / (k * (k + 1));
+        let start = pred.saturating_add(err * 2 * (2 * k - 1) / (k * (k + 1)));
+        let period = self.period.saturating_add(err * 6 / (k * (k + 1)));
         let (lo, hi) = self.period_bounds();
-        match (i32::try_from(start), i32::try_from(period)) {
-            (Ok(start), Ok(period)) if (lo..=hi).contains(&period) => {
-                self.begin(start, period);
-            }
-            _ => self.state = State::Hunt,
+        if (lo..=hi).contains(&period) {
+            self.begin(start, period);
+        } else {
+            self.state = State::Hunt;
         }
     }
 
