@@ -90,7 +90,7 @@ fn capture(fs_hz: u32) -> Capture {
         let i = (t >> 16) as usize;
         frames
             .get(i / 125)
-            .map_or(true, |f| (f.encode() >> (124 - i % 125)) & 1 == 1)
+            .is_none_or(|f| (f.encode() >> (124 - i % 125)) & 1 == 1)
     };
     let phase = 0x5A3C;
     let mut w = 0;
