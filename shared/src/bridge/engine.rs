@@ -125,7 +125,7 @@ impl Bridge {
     }
 
     /// Applies time up to `now_ns` to the supervisor and cleans up after a loss.
-    fn poll(&mut self, now_ns: u64) {
+    pub(super) fn poll(&mut self, now_ns: u64) {
         let Changes { lost, status_lost } = self.sup.poll(now_ns);
         if lost {
             bump(&mut self.counters.input_losses);

@@ -215,12 +215,14 @@ impl Bridge {
         }
     }
 
-    /// XY3-100 controller: writes the next backchannel bytes into `out` (at least
+    /// XY3-100 controller: applies time up to `now_ns` (like [`Bridge::tick`]),
+    /// then writes the next backchannel bytes into `out` (at least
     /// [`crate::xy3::back::SEND_BUF_LEN`] bytes) and returns how many. Call it
     /// whenever the UART can take more; it sends one packet per
     /// [`PACKET_INTERVAL_US`] (an error-state change at once), SYNC packets as the
     /// [`Sender`] interleaves them, and on an idle line only the SYNC keep-alive.
     pub fn xy3_back_poll(&mut self, now_ns: u64, out: &mut [u8]) -> Result<usize, EncodeError> {
+        self.poll(now_ns);
         let now_us = now_ns / 1_000;
         let alarms = self.reported_alarms();
         let changed = self.status.reported != Some(alarms);
