@@ -3,6 +3,11 @@
 //! bridge's own alarms, expressed in the controller's protocol with the existing
 //! neutral converters. The mapping table is `STATUS_MAP.md` next to this file.
 //!
+//! The XY2-100 and HANS-100 accessors take no time: they report the state as of the
+//! last event or tick (which the output clock calls every frame).
+//!
+#![doc = include_str!("STATUS_MAP.md")]
+//!
 //! The bridge's alarms are merged only for the duration of a conversion (swapped
 //! into the stored status and back), so no copy of the large status is made.
 
