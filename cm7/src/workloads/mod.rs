@@ -4,6 +4,7 @@
 //! is optimised away. One file per protocol; each exports `WORKLOADS`, listed in
 //! [`GROUPS`].
 
+pub mod bridge;
 pub mod model;
 
 /// Frames per measured window (the count per frame is an average over varied data).
@@ -44,4 +45,4 @@ impl Window {
 
 /// Every workload group, in the order they run. The first workload of the first group
 /// must stay the empty calibration window.
-pub const GROUPS: &[&[Workload]] = &[model::WORKLOADS];
+pub const GROUPS: &[&[Workload]] = &[model::WORKLOADS, bridge::WORKLOADS];

@@ -9,6 +9,17 @@ use super::translate::{config_position, Translator};
 use crate::model::{Alarms, Axis, Command, ForwardFrame, LaserControl, Line, LineEvent, Position};
 use crate::xy3::{self, BackRate};
 
+/// HANS-100 code 3 with power 0 and master oscillator, power amplifier and red
+/// pointer off: sent to a HANS-100 head in the first fail-safe frame after an input
+/// loss if laser control had been forwarded to it.
+pub const LASER_OFF: LaserControl = LaserControl::Power {
+    power: 0,
+    mo: false,
+    pa: false,
+    red_pointer: false,
+    reserved: 0,
+};
+
 /// The bridge's own outputs besides the head frames.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -57,8 +68,13 @@ pub struct Bridge {
     /// The last position sent on each axis.
     held: [Option<Position>; 5],
     park: ForwardFrame,
-    /// Latest HANS-100 code-3 MO and PA both on.
+    /// Latest HANS-100 code-3 MO and PA both on (cleared on input loss, so the
+    /// gate needs a fresh code 3 after recovery).
     mo_pa: bool,
+    /// Laser control has reached a HANS-100 head since the last switch-off.
+    laser_forwarded: bool,
+    /// The next fail-safe frame must carry [`LASER_OFF`].
+    laser_off_due: bool,
     power: Option<u8>,
     pub(super) controller_rate: BackRate,
     rate_changed: Option<BackRate>,
@@ -88,6 +104,8 @@ impl Bridge {
             held: [None; 5],
             park,
             mo_pa: false,
+            laser_forwarded: false,
+            laser_off_due: false,
             power: None,
             controller_rate: config.controller.xy3.back_rate,
             rate_changed: None,
@@ -129,6 +147,10 @@ impl Bridge {
         let Changes { lost, status_lost } = self.sup.poll(now_ns);
         if lost {
             bump(&mut self.counters.input_losses);
+            self.mo_pa = false;
+            // A HANS-100 head's laser is driven over the link itself: the gate
+            // output cannot stop it, so the first fail-safe frame switches it off.
+            self.laser_off_due = self.laser_forwarded;
             // A frame received before the loss is not sent after it.
             if let Some(p) = self.pending.take() {
                 if p.command.is_some() {
@@ -247,6 +269,13 @@ impl Bridge {
                 AfterHold::Stop => None,
             },
         };
+        let frame = frame.map(|mut f| {
+            if self.laser_off_due && self.sup.state() != LinkState::Running {
+                f.laser = Some(LASER_OFF);
+                self.laser_off_due = false;
+            }
+            f
+        });
         self.output(frame)
     }
 
@@ -270,6 +299,9 @@ impl Bridge {
                     Some(p) => *held = Some(*p),
                     None => *slot = *held,
                 }
+            }
+            if f.laser.is_some() {
+                self.laser_forwarded = f.laser != Some(LASER_OFF);
             }
             if let Some(Command::Xy3(code)) = f.command {
                 bump(&mut self.counters.commands_forwarded);

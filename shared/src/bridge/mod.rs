@@ -45,7 +45,7 @@
 //! | (power-up) | — | `Safe`, `INPUT_LOST`, no position to hold |
 //! | `Running` | valid frame | forward it; stay |
 //! | `Running` | fault | count; never forwarded; stay (output repeats) |
-//! | `Running` | no valid frame for `>= T` | `Holding` from `last_valid + T`; `INPUT_LOST`, gate off, pending frame dropped |
+//! | `Running` | no valid frame for `>= T` | `Holding` from `last_valid + T`; `INPUT_LOST`, gate off, pending frame dropped, MO/PA gate memory cleared; a HANS-100 head that got laser control gets [`LASER_OFF`] in the first fail-safe frame |
 //! | `Holding` | time reaches `last_valid + T + H` | `Safe` (`H = 0`: at once) |
 //! | `Holding` | — (each slot) | send the last valid positions, no commands / laser control |
 //! | `Safe` | — (each slot) | `after_hold = "park"`: send the park position; `"stop"`: send nothing |
@@ -77,7 +77,7 @@ pub use config::{
     MIN_RATE_HZ,
 };
 pub use counters::{Counters, LineCounters};
-pub use engine::{Bridge, LaserOutputs, Output};
+pub use engine::{Bridge, LaserOutputs, Output, LASER_OFF};
 pub use supervision::LinkState;
 
 #[cfg(test)]

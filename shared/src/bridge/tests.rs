@@ -520,6 +520,40 @@ fn laser_control_forwarded_or_exposed() {
             power: Some(0)
         }
     );
+    // After recovery the MO/PA gate needs a fresh code 3.
+    let out = pass(&mut b, 3 * MS, xyz16(1, 2, 3));
+    assert_eq!(out.state, LinkState::Running);
+    assert!(!out.laser.gate);
+}
+
+#[test]
+fn hans_head_laser_is_switched_off_on_input_loss() {
+    let power = LaserControl::Power {
+        power: 99,
+        mo: true,
+        pa: true,
+        red_pointer: true,
+        reserved: 0,
+    };
+    let mut b = slaved(Protocol::Hans, Protocol::Hans);
+    let mut f = xyz16(1, 2, 3);
+    f.laser = Some(power);
+    assert_eq!(pass(&mut b, 0, f).frame.unwrap().laser, Some(power));
+    let first = b.tick(MS);
+    assert_eq!(first.state, LinkState::Holding);
+    let f = first.frame.unwrap();
+    assert_eq!(f.laser, Some(LASER_OFF));
+    assert_eq!(f.axis(Axis::X).unwrap().to_raw(20), 1 << 4, "still holding");
+    // Only once; a second loss without laser control in between sends nothing.
+    assert_eq!(b.tick(MS + FP).frame.unwrap().laser, None);
+    pass(&mut b, 2 * MS, xyz16(1, 2, 3));
+    assert_eq!(b.tick(4 * MS).frame.unwrap().laser, None);
+    // Heads that cannot carry laser control never get it.
+    let mut b = slaved(Protocol::Hans, Protocol::Xy3);
+    let mut f = xyz16(1, 2, 3);
+    f.laser = Some(power);
+    pass(&mut b, 0, f);
+    assert_eq!(b.tick(MS).frame.unwrap().laser, None);
 }
 
 #[test]
@@ -582,4 +616,27 @@ fn slaved_ticks_only_clock_failsafe_frames() {
     let out = b.tick(t0 + FP + MS);
     assert_eq!(out.state, LinkState::Holding);
     assert_eq!(raw(&out, Axis::X, 16), Some(5));
+}
+
+proptest::proptest! {
+    /// Resize, invert and offset equal plain integer arithmetic at the head width,
+    /// clamped to the field.
+    #[test]
+    fn axis_map_is_integer_arithmetic(
+        v in proptest::prelude::any::<u32>(),
+        from in proptest::sample::select(&[16u8, 18, 20, 26][..]),
+        to in proptest::sample::select(&[16u8, 18, 20, 26][..]),
+        invert in proptest::prelude::any::<bool>(),
+        offset in -(1i32 << 26)..(1i32 << 26),
+    ) {
+        let v = v & ((1 << from) - 1);
+        let p = pos(v, from);
+        let max = (1i64 << to) - 1;
+        let resized = i64::from(p.to_raw(to));
+        let inv = if invert { max - resized } else { resized };
+        let want = (inv + i64::from(offset)).clamp(0, max);
+        let got = translate::map_position(p, to, invert, offset);
+        proptest::prop_assert_eq!(got.bits(), to);
+        proptest::prop_assert_eq!(i64::from(got.to_raw(to)), want);
+    }
 }

@@ -32,7 +32,7 @@ pub(crate) struct Translated {
 
 /// `p` at `bits`, inverted if asked, shifted by `offset` LSBs, clamped to the field:
 /// an offset must never wrap a position to the other end of the field.
-fn map_position(p: Position, bits: u8, invert: bool, offset: i32) -> Position {
+pub(super) fn map_position(p: Position, bits: u8, invert: bool, offset: i32) -> Position {
     let p = p.resized(bits);
     let p = if invert { p.inverted() } else { p };
     if offset == 0 {
