@@ -56,7 +56,8 @@ pub struct Output {
 }
 
 /// The sans-IO bridge engine.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Bridge {
     pub(super) config: Config,
     sup: Supervisor,

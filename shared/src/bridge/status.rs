@@ -53,7 +53,8 @@ const SCHEDULE: [StatusItem; 14] = [
 const DATA_ERROR: u8 = 2;
 
 /// Status-side state of the bridge.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub(crate) struct StatusState {
     /// The head's status as its receivers reported it.
     pub head: HeadStatus,
