@@ -1,11 +1,12 @@
 //! The [`Bridge`]: line events in, head frames and laser outputs out, driven by the
 //! caller's clock (see the [module docs](super) for the state machine).
 
-use super::config::{AfterHold, Config, ConfigError, GateSource, Protocol, Timing};
+use super::config::{AfterHold, Config, GateSource, Protocol, Timing};
 use super::counters::{bump, Counters};
 use super::status::StatusState;
 use super::supervision::{Changes, LinkState, Supervisor};
 use super::translate::{config_position, Translator};
+use super::validate::ConfigError;
 use crate::model::{Alarms, Axis, Command, ForwardFrame, LaserControl, Line, LineEvent, Position};
 use crate::xy3::{self, BackRate};
 

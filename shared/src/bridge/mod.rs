@@ -69,16 +69,18 @@ pub mod serde_impl;
 pub mod status;
 mod supervision;
 mod translate;
+mod validate;
 
 pub use config::{
-    AfterHold, AxisMap, Config, ConfigError, ControllerSide, FailSafe, GateSource, HansController,
-    HansDecode, HeadSide, LaserConfig, OutputConfig, Protocol, StatusForm, Timing, Xy2Controller,
-    Xy2Head, Xy3Controller, Xy3Head, ZConfig, ZSource, CENTRE20, HANS_RATE_HZ, MAX20, MAX_RATE_HZ,
+    AfterHold, AxisMap, Config, ControllerSide, FailSafe, GateSource, HansController, HansDecode,
+    HeadSide, LaserConfig, OutputConfig, Protocol, StatusForm, Timing, Xy2Controller, Xy2Head,
+    Xy3Controller, Xy3Head, ZConfig, ZSource, CENTRE20, HANS_RATE_HZ, MAX20, MAX_RATE_HZ,
     MIN_RATE_HZ,
 };
 pub use counters::{Counters, LineCounters};
 pub use engine::{Bridge, LaserOutputs, Output, LASER_OFF};
 pub use supervision::LinkState;
+pub use validate::ConfigError;
 
 #[cfg(test)]
 mod tests;
