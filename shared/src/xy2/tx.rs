@@ -21,12 +21,12 @@
 //! line explicitly, so a slot never depends on what the previous slot left behind.
 //!
 //! # Cost
-//! Per-pin masks are computed once in [`Transmitter::new`]. The words are left-aligned
-//! so the bit being sent is bit 31; an arithmetic shift turns it into all-ones or
-//! zero, which selects the pin's mask without a branch. The pins to set are ORed
-//! together; the data pins not set are reset (`(data ^ set) << 16`). SYNC and CLK come
-//! from two constant bases (bit 20 drops SYNC). A missing Z line has mask 0 and
-//! contributes nothing.
+//! [`Transmitter::new`] precomputes the whole first word of a bit for each of the 8
+//! patterns of one bit per data line (CLK and SYNC set, each data pin set or reset).
+//! Per bit the encoder only gathers the three bits into an index, looks the word up
+//! and stores it with the constant CLK-reset word: no branches on the data, a handful
+//! of instructions per bit. Bit 20 additionally flips SYNC from set to reset. A missing
+//! Z line has no pin, so its bit selects between identical entries.
 //!
 //! # Errors
 //! A frame the link cannot carry ([`EncodeError`]) is never half-sent: its slot is filled
@@ -119,10 +119,13 @@ pub struct Transmitter {
     link: LinkConfig,
     ticks: usize,
     has_z: bool,
-    /// BSRR set bit of CLK.
-    clk_set: u32,
-    /// Set bits of SYNC, X, Y, Z (0 for a missing Z).
-    lanes: [u32; 4],
+    /// First word of a bit (CLK and SYNC set, data set or reset) per pattern:
+    /// bit 0 of the index = X, bit 1 = Y, bit 2 = Z.
+    patterns: [u32; 8],
+    /// Second word of a bit: resets CLK (the sampling edge).
+    clk_reset: u32,
+    /// XORed into bit 20's first word: SYNC reset instead of set.
+    sync_drop: u32,
     /// Resets CLK, SYNC and the data lines.
     idle: u32,
 }
@@ -144,20 +147,26 @@ impl Transmitter {
             });
         }
         let bit = |b: u8| 1u32 << b;
-        let lanes = [
-            bit(pins.sync),
-            bit(pins.x),
-            bit(pins.y),
-            pins.z.map_or(0, bit),
-        ];
-        let all = bit(pins.clk) | lanes.iter().fold(0, |a, &m| a | m);
+        let lanes = [bit(pins.x), bit(pins.y), pins.z.map_or(0, bit)];
+        let data = lanes.iter().fold(0, |a, &m| a | m);
+        let high = bit(pins.clk) | bit(pins.sync);
+        let mut patterns = [0u32; 8];
+        for (v, entry) in patterns.iter_mut().enumerate() {
+            let set = lanes
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| v >> i & 1 != 0)
+                .fold(0, |a, (_, &m)| a | m);
+            *entry = high | set | (data ^ set) << 16;
+        }
         Ok(Transmitter {
             link,
             ticks: ticks_per_frame,
             has_z: pins.z.is_some(),
-            clk_set: bit(pins.clk),
-            lanes,
-            idle: all << 16,
+            patterns,
+            clk_reset: bit(pins.clk) << 16,
+            sync_drop: bit(pins.sync) | bit(pins.sync) << 16,
+            idle: (high | data) << 16,
         })
     }
 
@@ -231,34 +240,23 @@ impl Transmitter {
 
     /// Writes the 40 bit words and the idle tail; `slot` has the right length.
     fn fill(&self, slot: &mut [u32], [x, y, z]: [u32; 3]) {
-        let [sync, mx, my, mz] = self.lanes;
-        let data = mx | my | mz;
-        // SYNC is high for bits 1..19 and low for bit 20: two constant bases.
-        let high = self.clk_set | sync;
-        let last = self.clk_set | sync << 16;
-        let clk_reset = self.clk_set << 16;
-        // Left-align the words so the bit being sent is always bit 31.
-        let align = 32 - FRAME_BITS;
-        let (mut x, mut y, mut z) = (x << align, y << align, z << align);
-        let data_word = |x: u32, y: u32, z: u32| {
-            // All ones where bit 31 is 1: selects the pin's mask without a branch.
-            let set = (msb_mask(x) & mx) | (msb_mask(y) & my) | (msb_mask(z) & mz);
-            set | (data ^ set) << 16
-        };
         let (bits, tail) = slot.split_at_mut(FRAME_TICKS.min(slot.len()));
-        let mut pairs = bits.as_chunks_mut::<2>().0.iter_mut();
-        for pair in pairs.by_ref().take(FRAME_BITS as usize - 1) {
-            *pair = [high | data_word(x, y, z), clk_reset];
-            (x, y, z) = (x << 1, y << 1, z << 1);
-        }
-        if let Some(pair) = pairs.next() {
-            *pair = [last | data_word(x, y, z), clk_reset];
-        }
         tail.fill(self.idle);
+        let Some(bits) = bits.first_chunk_mut::<FRAME_TICKS>() else {
+            return;
+        };
+        let clk_reset = self.clk_reset;
+        // The bits go MSB first: bit 19 of each word in the first pair.
+        let word = |i: u32| {
+            let v = (x >> i & 1) | (y >> i & 1) << 1 | (z >> i & 1) << 2;
+            self.patterns.get(v as usize).copied().unwrap_or(self.idle)
+        };
+        let (pairs, _) = bits.as_chunks_mut::<2>();
+        for (pair, i) in pairs.iter_mut().zip((1..FRAME_BITS).rev()) {
+            *pair = [word(i), clk_reset];
+        }
+        if let Some(pair) = pairs.last_mut() {
+            *pair = [word(0) ^ self.sync_drop, clk_reset];
+        }
     }
-}
-
-/// All ones if bit 31 of `w` is set, else 0.
-const fn msb_mask(w: u32) -> u32 {
-    ((w as i32) >> 31) as u32
 }

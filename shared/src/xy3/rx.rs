@@ -387,12 +387,16 @@ impl Receiver {
             };
             // Only the last WINDOW bytes can still be decoded.
             let skip = bytes.len().saturating_sub(WINDOW);
-            let mut pos = self.pushed.wrapping_add(skip as u32);
-            for &b in bytes.iter().skip(skip) {
-                if let Some(slot) = ring.get_mut(pos as usize % WINDOW) {
-                    *slot = b;
-                }
-                pos = pos.wrapping_add(1);
+            let tail = bytes.get(skip..).unwrap_or_default();
+            let at = self.pushed.wrapping_add(skip as u32) as usize % WINDOW;
+            // At most WINDOW bytes: up to the ring's end, then the rest from its start
+            // (two block copies rather than a modulo per byte).
+            let (upto_end, wrapped) = tail.split_at(tail.len().min(WINDOW - at));
+            if let Some(dst) = ring.get_mut(at..at + upto_end.len()) {
+                dst.copy_from_slice(upto_end);
+            }
+            if let Some(dst) = ring.get_mut(..wrapped.len()) {
+                dst.copy_from_slice(wrapped);
             }
         }
         self.pushed = self.pushed.wrapping_add(len as u32);
@@ -417,17 +421,18 @@ impl Receiver {
         };
         let at = |i: u32| {
             let pos = self.start.wrapping_add(i) as usize % WINDOW;
-            u64::from(ring.get(pos).copied().unwrap_or(0))
+            ring.get(pos).copied().unwrap_or(0)
         };
-        let mut v: u64 = 0;
-        for i in 0..n {
-            v = v << 8 | at(i);
+        // The period's first four bytes; a 24-bit word at offset k lies inside them.
+        let head = u32::from_be_bytes([at(0), at(1), at(2), at(3)]);
+        let k = u32::from(k & 7);
+        if n == 4 {
+            // Bit k of the first byte is the word's first bit; the last k bits come
+            // from the top of the fifth byte.
+            head << k | u32::from(at(4)) >> (8 - k)
+        } else {
+            head << k >> 8
         }
-        if k > 0 {
-            v = (v << k | at(n) >> (8 - k)) & ((1 << (8 * n)) - 1);
-        }
-        // At most 32 bits remain.
-        v as u32
     }
 
     /// Decodes every configured line at offset `k`.

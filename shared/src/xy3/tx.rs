@@ -153,8 +153,8 @@ pub struct Transmitter {
     data: [Option<u8>; 5],
     /// Set bits of every driven data pin.
     data_mask: u32,
-    /// The BSRR data part (set for ones, reset for zeros) of every pattern of one bit
-    /// per line: bit 4 = X, bit 3 = Y, … bit 0 = W.
+    /// The rising-edge word (CLK set, data set for ones, reset for zeros) of every
+    /// pattern of one bit per line: bit 4 = X, bit 3 = Y, … bit 0 = W.
     lut: [u32; 32],
     size: FrameSize,
     ticks: usize,
@@ -193,7 +193,7 @@ impl Transmitter {
                 .filter(|(i, _)| v >> (4 - i) & 1 != 0)
                 .filter_map(|(_, p)| *p)
                 .fold(0, |m, p| m | set(p));
-            *entry = ones | (data_mask ^ ones) << 16;
+            *entry = set(pins.clk) | ones | (data_mask ^ ones) << 16;
         }
         Ok(Transmitter {
             clk: pins.clk,
@@ -265,38 +265,14 @@ impl Transmitter {
         let out = self.slot(out)?;
         let (clk_set, clk_reset) = (set(self.clk), reset(self.clk));
         let bits = usize::from(self.size.bits());
-        let [a, b, c, d, e] = words;
         let Some((setup, rest)) = out.split_first_mut() else {
             return Ok(());
         };
-        let mut pairs = rest.chunks_exact_mut(2);
-        // Eight bits at a time: transpose the 8x8 bit matrix whose rows are byte `k`
-        // of each line (rows 5..7 empty), so that row `j` of the result holds bit `j`
-        // of every line (X in bit 7 … W in bit 3), then look the pattern up
-        // (Hacker's Delight, 2nd ed., §7-3, transposing an 8x8 bit matrix).
-        for k in 0..bits / 8 {
-            let sh = 24 - 8 * k as u32;
-            let byte = |w: u32| w >> sh & 0xFF;
-            let mut x = byte(a) << 24 | byte(b) << 16 | byte(c) << 8 | byte(d);
-            let mut y = byte(e) << 24;
-            let mut t = (x ^ x >> 7) & 0x00AA_00AA;
-            x ^= t ^ t << 7;
-            t = (y ^ y >> 7) & 0x00AA_00AA;
-            y ^= t ^ t << 7;
-            t = (x ^ x >> 14) & 0x0000_CCCC;
-            x ^= t ^ t << 14;
-            t = (y ^ y >> 14) & 0x0000_CCCC;
-            y ^= t ^ t << 14;
-            t = x & 0xF0F0_F0F0 | y >> 4 & 0x0F0F_0F0F;
-            y = x << 4 & 0xF0F0_F0F0 | y & 0x0F0F_0F0F;
-            x = t;
-            for row in [x >> 24, x >> 16, x >> 8, x, y >> 24, y >> 16, y >> 8, y] {
-                let data = self.lut.get((row >> 3 & 31) as usize).copied().unwrap_or(0);
-                if let Some([rising, falling]) = pairs.next() {
-                    *rising = clk_set | data;
-                    *falling = clk_reset;
-                }
-            }
+        // Eight bits (16 words) at a time, on fixed-size chunks so the stores need no
+        // bounds checks and the eight rows unroll.
+        let (chunks, _) = rest.as_chunks_mut::<16>();
+        for (chunk, sh) in chunks.iter_mut().zip([24, 16, 8, 0]).take(bits / 8) {
+            self.byte_words(words, sh, chunk, clk_reset);
         }
         // Set-up word: SYNC falls with bit 0's data in place, CLK still low.
         let first = rest.first().map_or(0, |w| w & !clk_set);
@@ -309,5 +285,35 @@ impl Transmitter {
             idle.fill(0);
         }
         Ok(())
+    }
+
+    /// The 16 words of bits `sh + 7 .. sh` (MSB first) of every line.
+    ///
+    /// Transposes the 8x8 bit matrix whose rows are that byte of each line (rows 5..7
+    /// empty), so that row `j` of the result holds bit `j` of every line (X in bit 7 …
+    /// W in bit 3), then looks each row's pattern up (Hacker's Delight, 2nd ed., §7-3,
+    /// transposing an 8x8 bit matrix).
+    #[inline(always)]
+    fn byte_words(&self, [a, b, c, d, e]: [u32; 5], sh: u32, out: &mut [u32; 16], clk_reset: u32) {
+        let byte = |w: u32| w >> sh & 0xFF;
+        let mut x = byte(a) << 24 | byte(b) << 16 | byte(c) << 8 | byte(d);
+        let mut y = byte(e) << 24;
+        let mut t = (x ^ x >> 7) & 0x00AA_00AA;
+        x ^= t ^ t << 7;
+        t = (y ^ y >> 7) & 0x00AA_00AA;
+        y ^= t ^ t << 7;
+        t = (x ^ x >> 14) & 0x0000_CCCC;
+        x ^= t ^ t << 14;
+        t = (y ^ y >> 14) & 0x0000_CCCC;
+        y ^= t ^ t << 14;
+        t = x & 0xF0F0_F0F0 | y >> 4 & 0x0F0F_0F0F;
+        y = x << 4 & 0xF0F0_F0F0 | y & 0x0F0F_0F0F;
+        x = t;
+        let rows = [x >> 24, x >> 16, x >> 8, x, y >> 24, y >> 16, y >> 8, y];
+        let (pairs, _) = out.as_chunks_mut::<2>();
+        for (pair, row) in pairs.iter_mut().zip(rows) {
+            let rising = self.lut.get((row >> 3 & 31) as usize).copied().unwrap_or(0);
+            *pair = [rising, clk_reset];
+        }
     }
 }
