@@ -134,19 +134,18 @@ pub struct Frame {
     data3: u32,
 }
 
-/// Moves bit i of a (at most 32-bit) value to bit 2i: the usual shift-and-mask bit
-/// interleave, a fixed handful of operations instead of a 20-step loop (this runs for
-/// every transmitted frame).
-fn spread(x: u32) -> u64 {
-    let mut v = u64::from(x);
-    v = (v | v << 16) & 0x0000_FFFF_0000_FFFF;
-    v = (v | v << 8) & 0x00FF_00FF_00FF_00FF;
-    v = (v | v << 4) & 0x0F0F_0F0F_0F0F_0F0F;
-    v = (v | v << 2) & 0x3333_3333_3333_3333;
-    (v | v << 1) & 0x5555_5555_5555_5555
+/// Moves bit i of a 10-bit value to bit 2i (shift-and-mask interleave in 32-bit
+/// arithmetic, which the M7 does in one instruction per step; a 64-bit version costs
+/// two or three per step, and this runs for every transmitted frame).
+fn spread10(x: u32) -> u32 {
+    let mut v = x & 0x3FF;
+    v = (v | v << 8) & 0x0003_00FF;
+    v = (v | v << 4) & 0x0003_0F0F;
+    v = (v | v << 2) & 0x0003_3333;
+    (v | v << 1) & 0x0005_5555
 }
 
-/// The inverse of [`spread`]: gathers bits 0, 2, 4, … 62 into bits 0..32.
+/// Gathers bits 0, 2, 4, … 62 into bits 0..32 (the inverse of an interleave).
 fn gather_even(field: u64) -> u32 {
     let mut v = field & 0x5555_5555_5555_5555;
     v = (v | v >> 1) & 0x3333_3333_3333_3333;
@@ -160,7 +159,10 @@ fn gather_even(field: u64) -> u32 {
 /// The 40-bit line field of a 20-bit word: D19 at bit 39, its complement at bit 38,
 /// … D0 at bit 1, its complement at bit 0.
 fn spread_pairs(x: u32) -> u64 {
-    spread(x & WORD_MAX) << 1 | spread(!x & WORD_MAX)
+    let data = u64::from(spread10(x >> 10)) << 20 | u64::from(spread10(x));
+    // The complements are the even bits of the inverted data: `!x` spread is the
+    // all-pairs mask minus `x` spread, so one interleave serves both.
+    data << 1 | (data ^ 0x55_5555_5555)
 }
 
 impl Frame {
@@ -287,19 +289,46 @@ impl Frame {
     /// The only possible error is [`DecodeError::OutOfBuffer`].
     pub fn write_at(&self, buf: &mut [u8], bit_offset: usize) -> Result<(), DecodeError> {
         let buf_bytes = buf.len();
-        let (first, sub, bytes) = span(buf_bytes, bit_offset)?;
-        let window = buf
-            .get_mut(first..first + bytes)
-            .ok_or(DecodeError::OutOfBuffer {
-                bit_offset,
-                buf_bytes,
-            })?;
+        let (first, sub, _) = span(buf_bytes, bit_offset)?;
+        let out_of_buffer = DecodeError::OutOfBuffer {
+            bit_offset,
+            buf_bytes,
+        };
+        // The frame covers the 16 bytes from `first` (shifted right by `sub`), plus
+        // the top `sub - 3` bits of a 17th byte when `sub` > 3. The shift and the
+        // read-modify-write run on four big-endian u32 words (a variable u128 shift
+        // costs several times more on the M7); only the boundary words get partial
+        // masks, the middle ones are replaced.
         let value = self.encode() << 3;
-        for (j, byte) in window.iter_mut().enumerate() {
-            let k = 8 * j as i32 - sub as i32;
-            let bits = byte_at(value, k);
-            let mask = byte_at(ALIGNED_MASK, k);
-            *byte = (*byte & !mask) | (bits & mask);
+        let head = buf.get_mut(first..first + 16).ok_or(out_of_buffer)?;
+        // `sub` < 8: shifting by `(x << 1) << (31 - sub)` brings in the neighbour
+        // word's low bits without a 32-bit shift when `sub` is 0.
+        let sub = sub as u32;
+        let carry = |w: u32| (w << 1) << (31 - sub);
+        // Truncations intended: the four 32-bit words of the value, top first.
+        let [v0, v1, v2, v3] = [96, 64, 32, 0].map(|k| (value >> k) as u32);
+        let new = [
+            v0 >> sub,
+            v1 >> sub | carry(v0),
+            v2 >> sub | carry(v1),
+            v3 >> sub | carry(v2),
+        ];
+        // Bits of the frame in each word: all but the first `sub` of word 0, and in
+        // word 3 down to stream bit 125 (bit `3 - sub` of the word, if `sub` < 3).
+        let masks = [!0 >> sub, !0, !0, !0u32 << 3u32.saturating_sub(sub)];
+        for ((chunk, new), mask) in head.chunks_exact_mut(4).zip(new).zip(masks) {
+            let Ok(bytes) = <&mut [u8; 4]>::try_from(chunk) else {
+                return Err(out_of_buffer);
+            };
+            let old = u32::from_be_bytes(*bytes);
+            *bytes = (old & !mask | new & mask).to_be_bytes();
+        }
+        if sub > 3 {
+            let tail = buf.get_mut(first + 16).ok_or(out_of_buffer)?;
+            // Truncation intended: the low `sub` bits of the value, left-aligned.
+            let bits = (v3 as u8) << (8 - sub);
+            let mask = 0xF8u8 << (8 - sub);
+            *tail = (*tail & !mask) | (bits & mask);
         }
         Ok(())
     }
@@ -345,18 +374,6 @@ fn span(len: usize, bit_offset: usize) -> Result<(usize, usize, usize), DecodeEr
             buf_bytes: len,
         }),
     }
-}
-
-/// The 8 bits of a left-aligned 128-bit value starting at aligned position `k`
-/// (0 = bit 127); positions outside 0..128 read as zero.
-fn byte_at(value: u128, k: i32) -> u8 {
-    let v = if k >= 0 {
-        value.checked_shl(k as u32).unwrap_or(0)
-    } else {
-        value.checked_shr((-k) as u32).unwrap_or(0)
-    };
-    // Truncation intended: the top byte.
-    (v >> 120) as u8
 }
 
 /// Number of frame slots in the HANS-100 transmit ring (layout item 5).
