@@ -523,6 +523,7 @@ fn xy2_capture_from_another_tool() {
         "\n",
     ));
     assert_same(&got, &want, 0);
+    assert!(summary.contains("accepted 2, errors 0"), "{summary}");
     // Without the map the default names are missing: a clear error, exit code 1.
     let o = Command::new(BIN)
         .args(["decode", "--protocol", "xy2", "--input"])
