@@ -421,7 +421,7 @@ pub enum Line {
 }
 
 /// What went wrong on a line. Receivers report these; the bridge counts them per line
-/// and never forwards the frame they concern.
+/// and never forwards what failed.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum FaultKind {
@@ -444,7 +444,10 @@ pub enum FaultKind {
 pub enum LineEvent {
     /// One frame period whose every present channel passed its checks.
     Frame(ForwardFrame),
-    /// A fault on a line; the affected frame period is not forwarded.
+    /// A fault on a line. What failed is never forwarded; whether the frame period is
+    /// lost depends on the receiver: XY2-100 / XY3-100 drop the whole period, while the
+    /// HANS-100 vote and super modes may still deliver a frame verified on other
+    /// channels (as a separate [`LineEvent::Frame`]).
     Fault {
         /// Where.
         line: Line,

@@ -4,6 +4,7 @@
 //! is optimised away. One file per protocol; each exports `WORKLOADS`, listed in
 //! [`GROUPS`].
 
+pub mod hans;
 pub mod model;
 pub mod xy2;
 pub mod xy3;
@@ -46,4 +47,9 @@ impl Window {
 
 /// Every workload group, in the order they run. The first workload of the first group
 /// must stay the empty calibration window.
-pub const GROUPS: &[&[Workload]] = &[model::WORKLOADS, xy2::WORKLOADS, xy3::WORKLOADS];
+pub const GROUPS: &[&[Workload]] = &[
+    model::WORKLOADS,
+    xy2::WORKLOADS,
+    xy3::WORKLOADS,
+    hans::WORKLOADS,
+];

@@ -56,7 +56,9 @@
 pub mod ext;
 pub mod frame;
 pub mod neutral;
+pub mod rx;
 pub mod status;
+pub mod tx;
 #[cfg(any(test, feature = "vectors"))]
 #[doc(hidden)]
 pub mod vectors;

@@ -1,0 +1,154 @@
+//! Workloads of the HANS-100 line receiver and transmitter: instructions per 10 us
+//! frame for each decode mode on clean, realistic sample buffers.
+//!
+//! The buffers come from a tiny fixed-point line model (no std): random frames sent
+//! back to back, sampled at `fs` with an odd start phase and a fixed skew of up to
+//! ±1 sample per channel. The receiver first locks on [`WARM_FRAMES`] frames outside
+//! the window; the window then decodes [`MEASURED`] frames.
+
+use super::{Window, Workload};
+use crate::tests::prng::Prng;
+use core::hint::black_box;
+use shared::hans::rx::{HansRx, Mode, RxEvent};
+use shared::hans::tx::Transmitter;
+use shared::hans::{Frame, RING_BYTES};
+
+/// Frames decoded before the window (acquisition).
+const WARM_FRAMES: usize = 6;
+/// Frames decoded inside the window.
+const MEASURED: usize = 32;
+/// Words per channel for all frames at up to 4x (500 samples per frame), plus slack.
+const WORDS: usize = (WARM_FRAMES + MEASURED + 1) * 500 / 16 + 2;
+
+/// Every workload, in the order they run.
+pub const WORKLOADS: &[Workload] = &[
+    Workload {
+        name: "hans rx: normal, 1 ch, 3x (37.5 MHz)",
+        frames: MEASURED as u32,
+        run: |w| rx(w, 37_500_000, Mode::Normal { channel: 1 }),
+    },
+    Workload {
+        name: "hans rx: normal, 1 ch, 4x (50 MHz)",
+        frames: MEASURED as u32,
+        run: |w| rx(w, 50_000_000, Mode::Normal { channel: 1 }),
+    },
+    Workload {
+        name: "hans rx: vote3, 3x",
+        frames: MEASURED as u32,
+        run: |w| {
+            rx(
+                w,
+                37_500_000,
+                Mode::Vote3 {
+                    channels: [1, 3, 5],
+                },
+            )
+        },
+    },
+    Workload {
+        name: "hans rx: vote5, 3x",
+        frames: MEASURED as u32,
+        run: |w| rx(w, 37_500_000, Mode::Vote5),
+    },
+    Workload {
+        name: "hans rx: super, 5 ch, 3x",
+        frames: MEASURED as u32,
+        run: |w| rx(w, 37_500_000, Mode::Super),
+    },
+    Workload {
+        name: "hans tx: slot update",
+        frames: MEASURED as u32,
+        run: tx,
+    },
+];
+
+/// The sample words of five channels and how many of them hold the warm-up frames.
+struct Capture {
+    words: [[u16; WORDS]; 5],
+    len: usize,
+    warm: usize,
+}
+
+/// Samples back-to-back random frames at `fs_hz` (Q16 fixed point throughout).
+fn capture(fs_hz: u32) -> Capture {
+    let mut rng = Prng::new(0x4A45_5300);
+    let mut frames = [Frame::CENTRE; WARM_FRAMES + MEASURED + 1];
+    for f in frames.iter_mut() {
+        *f = Frame::new(rng.bits(20), rng.bits(20), rng.bits(20)).unwrap_or(Frame::CENTRE);
+    }
+    // Bits per sample, Q16.
+    let step = (12_500_000u64 << 16) / u64::from(fs_hz);
+    let total_bits = (frames.len() * 125) as u64;
+    let mut cap = Capture {
+        words: [[0; WORDS]; 5],
+        len: 0,
+        warm: 0,
+    };
+    // Skew per channel in Q16 bits (about -0.3..+0.3 bit, i.e. about ±1 sample).
+    let skews: [u64; 5] = [0x4000, 0x0000, 0x9000, 0x2000, 0x7000];
+    let bit_at = |t: u64| -> bool {
+        let i = (t >> 16) as usize;
+        frames
+            .get(i / 125)
+            .is_none_or(|f| (f.encode() >> (124 - i % 125)) & 1 == 1)
+    };
+    let phase = 0x5A3C;
+    let mut w = 0;
+    while w < WORDS {
+        let t_end = phase + (w as u64 * 16 + 16) * step + 0x1_0000;
+        if t_end >> 16 >= total_bits {
+            break;
+        }
+        for (c, skew) in skews.iter().enumerate() {
+            let mut word = 0u16;
+            for k in 0..16u64 {
+                let t = (phase + (w as u64 * 16 + k) * step + 0x1_0000).saturating_sub(*skew);
+                word = word << 1 | u16::from(bit_at(t));
+            }
+            cap.words[c][w] = word;
+        }
+        w += 1;
+    }
+    cap.len = w;
+    cap.warm = ((WARM_FRAMES as u64 * 125) << 16) as usize / step as usize / 16;
+    cap
+}
+
+/// Decodes the warm-up outside the window, then the measured frames inside it.
+fn rx(w: &mut Window, fs_hz: u32, mode: Mode) -> u32 {
+    let cap = black_box(capture(fs_hz));
+    let Ok(mut rx) = HansRx::new(fs_hz, mode) else {
+        return 0;
+    };
+    let mut sum = 0u32;
+    let mut sink = |e: RxEvent| {
+        if let RxEvent::Frame(f) = e {
+            sum = sum.wrapping_add(f.data1() ^ f.data3()).wrapping_add(1);
+        }
+    };
+    let chunks = |from: usize, to: usize| cap.words.each_ref().map(|c| &c[from..to]);
+    rx.push(&chunks(0, cap.warm), &mut sink);
+    let part = chunks(cap.warm, cap.len);
+    w.measure(|| rx.push(&part, &mut sink));
+    sum
+}
+
+/// One `Transmitter::update` per frame (slot write two ahead of the DMA).
+fn tx(w: &mut Window) -> u32 {
+    let mut rng = Prng::new(77);
+    let mut frames = [Frame::CENTRE; MEASURED];
+    for f in frames.iter_mut() {
+        *f = Frame::new(rng.bits(20), rng.bits(20), rng.bits(20)).unwrap_or(Frame::CENTRE);
+    }
+    let frames = black_box(frames);
+    let mut ring = [0u8; RING_BYTES];
+    let mut t = Transmitter::new();
+    let _ = t.park(&mut ring, &Frame::CENTRE);
+    w.measure(|| {
+        for (k, f) in frames.iter().enumerate() {
+            let remaining = RING_BYTES - (k % 8) * 125 / 8;
+            let _ = t.update(&mut ring, remaining, f);
+        }
+    });
+    ring.iter().fold(0u32, |a, &b| a.wrapping_add(u32::from(b)))
+}

@@ -1,0 +1,358 @@
+//! HANS-100 line level end to end: frames -> transmit slots (`write_slot`) -> the SPI
+//! bitstream at 12.5 MHz (with rate offset) -> impairments -> the oversampling SPI
+//! slaves (`Oversampler`, random phase) -> `hans::rx::HansRx` in every mode.
+//!
+//! Checks: every intact frame after lock is recovered, nothing that was not sent is
+//! ever published (and the order is kept), broken channels per mode, ±2 samples of
+//! skew, chunking independence, and the loss-rate limits against rate offset and
+//! jitter (printed with `--nocapture`).
+
+use host_tests::impair;
+use host_tests::line::drive::bitstream_to_signal;
+use host_tests::line::roles::HANS_CHANNELS;
+use host_tests::line::sample::Oversampler;
+use host_tests::wave::{Ps, Waveform};
+use rand::rngs::ChaCha8Rng;
+use rand::{RngExt, SeedableRng};
+use shared::hans::rx::{HansRx, Mode, RxEvent};
+use shared::hans::{write_slot, Frame, RING_BYTES, RING_SLOTS, WORD_MAX};
+
+const BIT_PS: f64 = 80_000.0;
+
+fn random_frames(n: usize, rng: &mut ChaCha8Rng) -> Vec<Frame> {
+    (0..n)
+        .map(|_| {
+            let mut w = || rng.random_range(0..=WORD_MAX);
+            Frame::new(w(), w(), w()).unwrap()
+        })
+        .collect()
+}
+
+/// The bytes the transmit ring sends over successive DMA turns (`write_slot` per
+/// frame), concatenated. The frame count must fill whole turns (8 frames).
+fn tx_bytes(frames: &[Frame]) -> Vec<u8> {
+    assert!(
+        frames.len().is_multiple_of(RING_SLOTS),
+        "whole DMA turns only"
+    );
+    let mut out = Vec::new();
+    for turn in frames.chunks(RING_SLOTS) {
+        let mut ring = [0u8; RING_BYTES];
+        for (slot, f) in turn.iter().enumerate() {
+            write_slot(&mut ring, slot, f).unwrap();
+        }
+        out.extend_from_slice(&ring);
+    }
+    out
+}
+
+/// Line conditions of one run.
+#[derive(Clone, Copy, Debug)]
+struct Line {
+    fs_hz: f64,
+    /// Sender rate offset, percent.
+    offset_pct: f64,
+    /// Edge jitter, fraction of a bit.
+    jitter: f64,
+    /// Skew per channel in samples (at fs).
+    skew: [f64; 5],
+}
+
+/// What may go wrong on one channel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Fault {
+    None,
+    /// Stuck at a level from `from` frames on.
+    Stuck(bool),
+    /// Dense glitches over the whole run.
+    Noise,
+}
+
+/// The five channels' sample words (`u16`, as the SPI slaves deliver them).
+fn capture(frames: &[Frame], line: Line, faults: [Fault; 5], seed: u64) -> (Vec<Vec<u16>>, Ps) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let bytes = tx_bytes(frames);
+    let rate = 12.5e6 * (1.0 + line.offset_pct / 100.0);
+    let t0: Ps = 1_000_000;
+    let mut wave = Waveform::new();
+    for name in HANS_CHANNELS {
+        wave.insert(bitstream_to_signal(name, &bytes, rate, t0).unwrap());
+    }
+    let end = t0 + (bytes.len() as f64 * 8.0 * 1e12 / rate) as Ps;
+    if line.jitter > 0.0 {
+        let max = (line.jitter * BIT_PS) as u64;
+        impair::jitter(&mut wave, &[], max, rng.random()).unwrap();
+    }
+    let sample_ps = 1e12 / line.fs_hz;
+    let delays: Vec<(&str, i64)> = HANS_CHANNELS
+        .iter()
+        .zip(line.skew)
+        .map(|(&n, s)| (n, (s * sample_ps) as i64 + 100_000))
+        .collect();
+    impair::skew(&mut wave, &delays).unwrap();
+    for (name, fault) in HANS_CHANNELS.iter().zip(faults) {
+        match fault {
+            Fault::None => {}
+            Fault::Stuck(level) => {
+                impair::stuck_at(&mut wave, name, t0 + (end - t0) / 3, level).unwrap()
+            }
+            Fault::Noise => impair::noise_burst(
+                &mut wave,
+                name,
+                (t0, end),
+                frames.len() * 3,
+                40_000,
+                rng.random(),
+            )
+            .unwrap(),
+        }
+    }
+    let sampler = Oversampler {
+        fs_hz: line.fs_hz,
+        start_ps: rng.random_range(0.0..200_000.0),
+    };
+    let words = sampler.sample(&wave, &HANS_CHANNELS, end).unwrap();
+    let words = words
+        .into_iter()
+        .map(|ch| {
+            ch.into_iter()
+                .flat_map(|w| [(w >> 16) as u16, w as u16])
+                .collect()
+        })
+        .collect();
+    (words, end)
+}
+
+/// Runs `mode` over the capture in chunks of random length.
+fn receive(words: &[Vec<u16>], fs_hz: f64, mode: Mode, seed: u64) -> (Vec<RxEvent>, HansRx) {
+    let mut rx = HansRx::new(fs_hz.round() as u32, mode).unwrap();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let len = words[0].len();
+    let mut at = 0;
+    let mut events = Vec::new();
+    while at < len {
+        let n = rng.random_range(1..=64).min(len - at);
+        let chunks: Vec<&[u16]> = words.iter().map(|w| &w[at..at + n]).collect();
+        rx.push(&chunks, &mut |e| events.push(e));
+        at += n;
+    }
+    (events, rx)
+}
+
+fn published(events: &[RxEvent]) -> Vec<Frame> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            RxEvent::Frame(f) => Some(*f),
+            RxEvent::Fault { .. } => None,
+        })
+        .collect()
+}
+
+/// Matches `got` against `sent` in order: returns (frames after the first `skip`
+/// that were not published, published frames that were never sent at that point).
+fn score(sent: &[Frame], got: &[Frame], skip: usize) -> (usize, usize) {
+    let mut i = 0;
+    let mut matched = Vec::new();
+    let mut invented = 0;
+    for f in got {
+        match sent[i.min(sent.len())..].iter().position(|s| s == f) {
+            Some(k) => {
+                matched.push(i + k);
+                i += k + 1;
+            }
+            None => invented += 1,
+        }
+    }
+    // The last frame needs no following start edge to be sampled, but the capture
+    // may end inside it: don't count it.
+    let lost: Vec<usize> = (skip..sent.len() - 1)
+        .filter(|k| !matched.contains(k))
+        .collect();
+    (lost.len(), invented)
+}
+
+/// Like [`score`], failing on any published frame that was not sent.
+fn lost_after(sent: &[Frame], got: &[Frame], skip: usize) -> usize {
+    let (lost, invented) = score(sent, got, skip);
+    assert_eq!(invented, 0, "published frames that were not sent");
+    lost
+}
+
+const MODES: [Mode; 4] = [
+    Mode::Normal { channel: 2 },
+    Mode::Vote3 {
+        channels: [5, 1, 3],
+    },
+    Mode::Vote5,
+    Mode::Super,
+];
+
+/// Frames that may be lost during acquisition: hunt (1-2 frames), rate measurement
+/// (1 frame), the first fits, and one relock after a false lock (3 failures).
+const LOCK_FRAMES: usize = 10;
+
+#[test]
+fn every_mode_recovers_every_intact_frame() {
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    for (k, fs) in [37.5e6, 40e6, 50e6, 45.3e6].into_iter().enumerate() {
+        for offset in [-1.0, 0.0, 1.0] {
+            let frames = random_frames(160, &mut rng);
+            let skew = std::array::from_fn(|_| rng.random_range(-2.0..=2.0));
+            let line = Line {
+                fs_hz: fs,
+                offset_pct: offset,
+                jitter: 0.15,
+                skew,
+            };
+            let (words, _) = capture(&frames, line, [Fault::None; 5], k as u64);
+            for mode in MODES {
+                let (events, _) = receive(&words, fs, mode, 9);
+                let lost = lost_after(&frames, &published(&events), LOCK_FRAMES);
+                assert_eq!(lost, 0, "{mode:?} {line:?}");
+            }
+        }
+    }
+}
+
+#[test]
+fn chunking_does_not_matter() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2);
+    let frames = random_frames(48, &mut rng);
+    let line = Line {
+        fs_hz: 40e6,
+        offset_pct: 0.4,
+        jitter: 0.2,
+        skew: [0.0, 1.5, -2.0, 0.7, 2.0],
+    };
+    let faults = [
+        Fault::None,
+        Fault::Noise,
+        Fault::None,
+        Fault::Stuck(true),
+        Fault::None,
+    ];
+    let (words, _) = capture(&frames, line, faults, 5);
+    for mode in MODES {
+        let (a, _) = receive(&words, line.fs_hz, mode, 1);
+        let (b, _) = receive(&words, line.fs_hz, mode, 2);
+        let (c, _) = receive(&words, line.fs_hz, mode, 3);
+        assert_eq!(a, b, "{mode:?}");
+        assert_eq!(a, c, "{mode:?}");
+    }
+}
+
+/// Runs one broken-line scenario; returns frames lost after lock.
+fn broken(mode: Mode, faults: [Fault; 5], seed: u64) -> (usize, usize) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let frames = random_frames(120, &mut rng);
+    let fs = [37.5e6, 40e6, 50e6][seed as usize % 3];
+    let line = Line {
+        fs_hz: fs,
+        offset_pct: rng.random_range(-1.0..=1.0),
+        jitter: 0.15,
+        skew: std::array::from_fn(|_| rng.random_range(-2.0..=2.0)),
+    };
+    let (words, _) = capture(&frames, line, faults, seed);
+    let (events, _) = receive(&words, fs, mode, seed);
+    let got = published(&events);
+    (lost_after(&frames, &got, LOCK_FRAMES), got.len())
+}
+
+#[test]
+fn broken_channels_never_yield_garbage() {
+    use Fault::{Noise, Stuck};
+    const OK: Fault = Fault::None;
+    for seed in 0..3 {
+        // Normal on a broken channel loses frames, never invents any (checked in
+        // `lost_after`); on a stuck one it stops publishing.
+        let (lost, _) = broken(Mode::Normal { channel: 2 }, [OK, Noise, OK, OK, OK], seed);
+        assert!(lost > 0, "dense noise should cost frames");
+        let (lost, got) = broken(
+            Mode::Normal { channel: 2 },
+            [OK, Stuck(seed % 2 == 0), OK, OK, OK],
+            seed,
+        );
+        assert!(
+            lost > 60 && got < 60,
+            "stuck channel: {lost} lost, {got} published"
+        );
+        // Vote3 with one bad channel of three.
+        let vote3 = Mode::Vote3 {
+            channels: [5, 1, 3],
+        };
+        let (lost, _) = broken(vote3, [Stuck(false), OK, OK, Noise, OK], seed);
+        assert_eq!(lost, 0, "vote3, one stuck");
+        // Vote5 with two bad of five: one stuck, one noisy.
+        let (lost, _) = broken(Mode::Vote5, [OK, Stuck(true), OK, OK, Noise], seed);
+        assert_eq!(lost, 0, "vote5, two bad");
+        // Super with four bad of five.
+        let faults = [Noise, Stuck(true), Noise, OK, Stuck(false)];
+        let (lost, _) = broken(Mode::Super, faults, seed);
+        assert_eq!(lost, 0, "super, four bad");
+    }
+}
+
+/// Loss rate (percent) of normal mode on one clean channel over `n` frames, and the
+/// number of published frames that were not sent (wrong frames that happened to pass
+/// every check: possible only far beyond the specified impairments).
+fn loss(fs: f64, offset_pct: f64, jitter: f64, n: usize, seed: u64) -> (f64, usize) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let frames = random_frames(n, &mut rng);
+    let line = Line {
+        fs_hz: fs,
+        offset_pct,
+        jitter,
+        skew: [0.0; 5],
+    };
+    let (words, _) = capture(&frames, line, [Fault::None; 5], seed);
+    let words = vec![words[0].clone()];
+    let (events, _) = receive(&words, fs, Mode::Normal { channel: 1 }, seed);
+    let (lost, wrong) = score(&frames, &published(&events), LOCK_FRAMES);
+    (100.0 * lost as f64 / (n - LOCK_FRAMES - 1) as f64, wrong)
+}
+
+#[test]
+fn limits_rate_offset_and_jitter() {
+    const N: usize = 400;
+    println!("HANS-100 receiver: frames lost (%) over {N} frames, normal mode, after lock");
+    print!("{:>14}", "rate offset");
+    let offsets = [-3.0, -2.0, -1.5, -1.0, 0.0, 1.0, 1.5, 2.0, 3.0];
+    for o in offsets {
+        print!("{o:>7.1}%");
+    }
+    println!();
+    for fs in [37.5e6, 50e6] {
+        print!("{:>10.1} MHz", fs / 1e6);
+        for (i, o) in offsets.into_iter().enumerate() {
+            let (l, wrong) = loss(fs, o, 0.0, N, 100 + i as u64);
+            print!("{l:>7.1}{}", if wrong > 0 { '!' } else { ' ' });
+            if o.abs() <= 1.0 {
+                assert_eq!((l, wrong), (0.0, 0), "lost frames at {o} % offset, {fs} Hz");
+            }
+        }
+        println!();
+    }
+    print!("{:>14}", "jitter ±");
+    let jitters = [0.0, 0.1, 0.2, 0.25, 0.3, 0.35, 0.4, 0.45];
+    for j in jitters {
+        print!("{:>7.0}%", j * 100.0);
+    }
+    println!();
+    for fs in [37.5e6, 50e6] {
+        print!("{:>10.1} MHz", fs / 1e6);
+        for (i, j) in jitters.into_iter().enumerate() {
+            let (l, wrong) = loss(fs, 0.0, j, N, 200 + i as u64);
+            print!("{l:>7.1}{}", if wrong > 0 { '!' } else { ' ' });
+            if j <= 0.25 {
+                assert_eq!(
+                    (l, wrong),
+                    (0.0, 0),
+                    "lost frames at ±{j} bit jitter, {fs} Hz"
+                );
+            }
+        }
+        println!();
+    }
+    println!("(! = a frame that was not sent passed every check)");
+}

@@ -1,0 +1,374 @@
+//! Receiver tests on hand-built and modelled sample streams. The model here is the
+//! simplest possible line: ideal edges, one sampling clock at `ratio` samples per
+//! bit with a start phase; the host tests add jitter, skew and noise.
+
+use super::channel::ChannelRx;
+use super::modes::{majority3, majority5, super_vote, SuperOutcome};
+use super::*;
+use crate::model::FaultKind;
+use proptest::prelude::*;
+
+fn frame(a: u32, b: u32, c: u32) -> Frame {
+    Frame::new(a, b, c).unwrap()
+}
+
+/// The line bits of `frames` sent back to back, first bit first.
+fn line_bits(frames: &[Frame]) -> Vec<bool> {
+    frames
+        .iter()
+        .flat_map(|f| {
+            let p = f.encode();
+            (0..125).rev().map(move |i| (p >> i) & 1 == 1)
+        })
+        .collect()
+}
+
+/// Samples `bits` at `ratio` samples per bit starting `phase` bits into the stream,
+/// packed 16 to a word, MSB first (only whole words).
+fn oversample(bits: &[bool], ratio: f64, phase: f64) -> Vec<u16> {
+    let samples = ((bits.len() as f64 - phase) * ratio) as usize;
+    let mut words = Vec::new();
+    for w in 0..samples / 16 {
+        let mut word = 0u16;
+        for k in 0..16 {
+            let t = phase + (w * 16 + k) as f64 / ratio;
+            let bit = bits.get(t as usize).copied().unwrap_or(true);
+            word = word << 1 | u16::from(bit);
+        }
+        words.push(word);
+    }
+    words
+}
+
+fn frames(n: usize, seed: u32) -> Vec<Frame> {
+    let mut x = seed.max(1);
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 17;
+        x ^= x << 5;
+        x & WORD
+    };
+    const WORD: u32 = 0xF_FFFF;
+    (0..n).map(|_| frame(next(), next(), next())).collect()
+}
+
+/// Runs `rx` over `words` (the same words on every channel), returning the events.
+fn run(rx: &mut HansRx, words: &[u16], chunk: usize) -> Vec<RxEvent> {
+    let mut out = Vec::new();
+    for part in words.chunks(chunk.max(1)) {
+        rx.push(&[part; 5], &mut |e| out.push(e));
+    }
+    out
+}
+
+fn published(events: &[RxEvent]) -> Vec<Frame> {
+    events
+        .iter()
+        .filter_map(|e| match e {
+            RxEvent::Frame(f) => Some(*f),
+            RxEvent::Fault { .. } => None,
+        })
+        .collect()
+}
+
+/// Every published frame is one that was sent, in order, and all but the first
+/// `lock` frames (acquisition) and the last one (no following start edge needed,
+/// but the last word may cut it) arrive.
+fn assert_recovered(sent: &[Frame], got: &[Frame], lock: usize) {
+    let first = sent
+        .iter()
+        .position(|f| Some(f) == got.first())
+        .expect("no sent frame published");
+    assert!(first <= lock, "locked only after {first} frames");
+    let tail = &sent[first..];
+    assert!(
+        tail.starts_with(got),
+        "published frames differ from the sent sequence"
+    );
+    assert!(got.len() + 1 >= tail.len(), "lost frames after lock");
+}
+
+const MODES: [Mode; 4] = [
+    Mode::Normal { channel: 3 },
+    Mode::Vote3 {
+        channels: [1, 4, 5],
+    },
+    Mode::Vote5,
+    Mode::Super,
+];
+
+#[test]
+fn clean_streams_are_recovered_in_every_mode() {
+    for (ratio, hz) in [(3.0, 37_500_000), (3.2, 40_000_000), (4.0, 50_000_000)] {
+        for phase in [0.0, 0.37, 0.81] {
+            let sent = frames(40, 7);
+            let words = oversample(&line_bits(&sent), ratio, phase);
+            for mode in MODES {
+                let mut rx = HansRx::new(hz, mode).unwrap();
+                let events = run(&mut rx, &words, 7);
+                assert_recovered(&sent, &published(&events), 3);
+            }
+        }
+    }
+}
+
+#[test]
+fn chunking_does_not_change_events() {
+    let sent = frames(20, 99);
+    let words = oversample(&line_bits(&sent), 3.2, 0.5);
+    for mode in MODES {
+        let whole = run(
+            &mut HansRx::new(40_000_000, mode).unwrap(),
+            &words,
+            usize::MAX,
+        );
+        for chunk in [1, 2, 3, 16, 61] {
+            let parts = run(&mut HansRx::new(40_000_000, mode).unwrap(), &words, chunk);
+            assert_eq!(whole, parts, "{mode:?} chunk {chunk}");
+        }
+    }
+}
+
+#[test]
+fn a_flipped_bit_is_never_published() {
+    let sent = frames(12, 3);
+    let mut bits = line_bits(&sent);
+    // Frame 6, DATA2 D7 (line bit 2 + 40 + 2*(19-7)): invert the whole bit time.
+    let at = 6 * 125 + 2 + 40 + 2 * 12;
+    bits[at] = !bits[at];
+    let words = oversample(&bits, 3.0, 0.2);
+    for mode in [Mode::Normal { channel: 1 }, Mode::Super] {
+        let mut rx = HansRx::new(37_500_000, mode).unwrap();
+        let events = run(&mut rx, &words, 5);
+        let got = published(&events);
+        assert!(
+            !got.contains(&sent[6]),
+            "{mode:?} published a corrupted frame"
+        );
+        assert!(got.contains(&sent[5]) && got.contains(&sent[7]), "{mode:?}");
+        assert!(events.contains(&RxEvent::Fault {
+            channel: Some(1),
+            kind: FaultKind::CheckFailed
+        }));
+        assert_eq!(rx.stats(1).unwrap().check_failures, 1);
+    }
+}
+
+#[test]
+fn resynchronises_after_a_gap() {
+    let sent = frames(30, 11);
+    let bits = line_bits(&sent);
+    let mut words = oversample(&bits[..125 * 10 + 40], 3.2, 0.0);
+    // The line stops (low) for a while, then the stream resumes mid-frame.
+    words.extend([0u16; 50]);
+    words.extend(oversample(&bits[125 * 14 + 70..], 3.2, 0.3));
+    let mut rx = HansRx::new(40_000_000, Mode::Normal { channel: 2 }).unwrap();
+    let events = run(&mut rx, &words, 9);
+    let got = published(&events);
+    assert!(got.contains(&sent[8]));
+    assert!(got.contains(&sent[25]), "did not resynchronise");
+    assert!(got.iter().all(|f| sent.contains(f)));
+    assert!(rx.stats(2).unwrap().resyncs >= 1);
+}
+
+#[test]
+fn garbage_and_constant_lines_publish_nothing() {
+    let mut x = 0x1234_5678u32;
+    let noise: Vec<u16> = (0..5000)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 17;
+            x ^= x << 5;
+            x as u16
+        })
+        .collect();
+    for words in [noise, vec![0u16; 500], vec![0xFFFF; 500], vec![0xAAAA; 500]] {
+        for mode in MODES {
+            let mut rx = HansRx::new(45_000_000, mode).unwrap();
+            assert!(published(&run(&mut rx, &words, 13)).is_empty());
+        }
+    }
+}
+
+#[test]
+fn rejects_bad_configuration() {
+    assert_eq!(
+        HansRx::new(30_000_000, Mode::Super),
+        Err(ConfigError::SampleRate { hz: 30_000_000 })
+    );
+    assert_eq!(
+        HansRx::new(50_000_001, Mode::Super),
+        Err(ConfigError::SampleRate { hz: 50_000_001 })
+    );
+    assert_eq!(
+        HansRx::new(40_000_000, Mode::Normal { channel: 0 }),
+        Err(ConfigError::Channel { channel: 0 })
+    );
+    assert_eq!(
+        HansRx::new(
+            40_000_000,
+            Mode::Vote3 {
+                channels: [1, 6, 2]
+            }
+        ),
+        Err(ConfigError::Channel { channel: 6 })
+    );
+    assert_eq!(
+        HansRx::new(
+            40_000_000,
+            Mode::Vote3 {
+                channels: [2, 3, 2]
+            }
+        ),
+        Err(ConfigError::Channel { channel: 2 })
+    );
+    assert!(ConfigError::Channel { channel: 9 }
+        .to_string()
+        .contains('9'));
+}
+
+#[test]
+fn unequal_chunks_report_dropped() {
+    let mut rx = HansRx::new(40_000_000, Mode::Vote5).unwrap();
+    let mut events = Vec::new();
+    let a = [0u16; 4];
+    let b = [0u16; 3];
+    rx.push(&[&a, &a, &b, &a, &a], &mut |e| events.push(e));
+    assert_eq!(
+        events,
+        [RxEvent::Fault {
+            channel: None,
+            kind: FaultKind::Dropped
+        }]
+    );
+}
+
+#[test]
+fn line_events() {
+    let f = Frame::CENTRE;
+    assert_eq!(
+        RxEvent::Frame(f).to_line_event(),
+        LineEvent::Frame(f.to_forward())
+    );
+    assert_eq!(
+        RxEvent::Fault {
+            channel: Some(4),
+            kind: FaultKind::Resync
+        }
+        .to_line_event(),
+        LineEvent::Fault {
+            line: Line::HansChannel(4),
+            kind: FaultKind::Resync
+        }
+    );
+    assert_eq!(
+        RxEvent::Fault {
+            channel: None,
+            kind: FaultKind::Disagree
+        }
+        .to_line_event(),
+        LineEvent::Fault {
+            line: Line::Framing,
+            kind: FaultKind::Disagree
+        }
+    );
+}
+
+#[rustfmt::skip]
+const MAJORITY3: &[(u128, u128, u128, u128)] = &[
+    // (a, b, c, 2-of-3) worked bit by bit
+    (0b0000, 0b0000, 0b0000, 0b0000),
+    (0b1100, 0b1010, 0b1001, 0b1000),
+    (0b0110, 0b0101, 0b0011, 0b0111),
+    (0b1111, 0b0000, 0b1111, 0b1111),
+];
+
+#[rustfmt::skip]
+const MAJORITY5: &[([u128; 5], u128)] = &[
+    // bit 3: 5 ones; bit 2: 3 ones; bit 1: 2 ones; bit 0: 4 ones
+    ([0b1101, 0b1111, 0b1001, 0b1010, 0b1101], 0b1101),
+    ([0, 0, 0, 0, 0], 0),
+    ([0b1, 0b1, 0, 0, 0b1], 0b1),
+    ([0b1, 0b1, 0, 0, 0], 0),
+];
+
+#[test]
+fn majorities() {
+    for &(a, b, c, want) in MAJORITY3 {
+        assert_eq!(majority3(a, b, c), want);
+    }
+    for &(v, want) in MAJORITY5 {
+        assert_eq!(majority5(v), want);
+    }
+}
+
+#[test]
+fn super_rule() {
+    let a = Some(frame(1, 2, 3));
+    let b = Some(frame(4, 5, 6));
+    let fa = frame(1, 2, 3);
+    assert_eq!(super_vote(&[None; 5]), SuperOutcome::Nothing);
+    assert_eq!(
+        super_vote(&[None, None, a, None, None]),
+        SuperOutcome::Publish {
+            frame: fa,
+            minority: 0
+        }
+    );
+    assert_eq!(
+        super_vote(&[a, b, None, None, None]),
+        SuperOutcome::Disagree
+    );
+    assert_eq!(super_vote(&[a, b, a, b, None]), SuperOutcome::Disagree);
+    assert_eq!(
+        super_vote(&[a, b, a, None, None]),
+        SuperOutcome::Publish {
+            frame: fa,
+            minority: 0b10
+        }
+    );
+    assert_eq!(
+        super_vote(&[b, a, a, b, a]),
+        SuperOutcome::Publish {
+            frame: fa,
+            minority: 0b1001
+        }
+    );
+}
+
+#[test]
+fn channel_tracks_rate_offsets() {
+    // 1.5 % fast and slow senders at 3.2x nominal.
+    for ratio in [3.2 * 0.985, 3.2 * 1.015] {
+        let sent = frames(60, 5);
+        let words = oversample(&line_bits(&sent), ratio, 0.4);
+        let mut ch = ChannelRx::new((3.2 * 65536.0) as i32);
+        let mut ok = 0;
+        for &w in &words {
+            if let Some(p) = ch.push(w).pattern {
+                ok += usize::from(Frame::decode(p).is_ok());
+            }
+        }
+        assert!(ok + 4 >= sent.len(), "{ratio}: {ok} frames");
+        let tracked = f64::from(ch.ratio_q16()) / 65536.0;
+        assert!(
+            (tracked - ratio).abs() < 0.002,
+            "tracked {tracked} for {ratio}"
+        );
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    /// Random rates, phases and chunkings: every frame after lock, and nothing else.
+    #[test]
+    fn random_clean_streams(ratio in 3.0f64..=4.0, phase in 0.0f64..1.0,
+                            seed in 1u32.., chunk in 1usize..40) {
+        let sent = frames(16, seed);
+        let words = oversample(&line_bits(&sent), ratio, phase);
+        let hz = (ratio * 12.5e6).round() as u32;
+        let mut rx = HansRx::new(hz, Mode::Super).unwrap();
+        let events = run(&mut rx, &words, chunk);
+        assert_recovered(&sent, &published(&events), 3);
+    }
+}
