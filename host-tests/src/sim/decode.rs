@@ -7,9 +7,8 @@
 //!   [`xy3::rx::Receiver`] in contract-sized chunks; one record per frame period.
 //! - Backchannel: UART 8N1 frames ([`uart::uart_decode`]) into the firmware's
 //!   [`Parser`].
-//! - HANS-100: the capture is read and oversampled into the firmware's `u16` rings;
-//!   the receiver that consumes them is not merged yet, so this returns
-//!   [`SimError::NotAvailable`] at the marked plug-in point.
+//! - HANS-100: the capture is oversampled into the firmware's `u16` rings (an arbitrary
+//!   sampling phase) and fed to [`hans::rx::HansRx`] in the chosen decode mode.
 //!
 //! The firmware's buffers carry no time; the samplers keep a parallel vector of sample
 //! times from which each record's `t_ns` (the frame start) is derived.
@@ -17,8 +16,9 @@
 use std::collections::BTreeMap;
 use std::fmt;
 
-use shared::xy2;
+use shared::model::FaultKind;
 use shared::xy3::back::{Event, Parser};
+use shared::{hans, xy2};
 
 use shared::model::Axis;
 use shared::xy3;
@@ -479,7 +479,14 @@ impl std::str::FromStr for HansMode {
 
 /// HANS-100: `ch1`..`ch5` sampled like the firmware (oversampling clock of
 /// `oversample` x 12.5 MHz with an arbitrary phase from `seed`) -> `u16` rings ->
-/// receiver.
+/// [`hans::rx::HansRx`] in `mode` -> records.
+///
+/// The rings go in one word per channel at a time, so every event is known to the
+/// word (16 samples) in which its frame period closed; `t_ns` is that word's middle
+/// minus one frame time. One record per period: the frame the mode published, or an
+/// error naming the faults of a rejected period. Channel faults in a published period
+/// (a minority channel that failed or disagreed) and losses of alignment are counted
+/// in the summary only.
 pub fn hans(
     path: &std::path::Path,
     map: &NameMap,
@@ -499,10 +506,20 @@ pub fn hans(
         _ => (roles::HANS_CHANNELS.to_vec(), names::HANS.to_vec()),
     };
     let wave = read_capture(path, &r, &d, r.len(), map)?;
+    // The capture's end (for silence at the end) counts the other channels too.
+    let capture_end_ps = match mode {
+        HansMode::Normal(_) => read_capture(path, &roles::HANS_CHANNELS, &names::HANS, 0, map)?
+            .end_time()
+            .max(wave.end_time()),
+        _ => wave.end_time(),
+    };
     let fs = 12.5e6 * f64::from(oversample);
     // Phase: somewhere inside the first sample period, reproducible from the seed.
     let start_ps = (seed % 1000) as f64 / 1000.0 * 1e12 / fs;
-    let end = wave.end_time().saturating_add(1_000_000);
+    // 2 us of the lines' final levels after the last change: enough for a period
+    // still waiting for a missing channel to close (two words), too short for the
+    // idle level to look like a frame.
+    let end = wave.end_time().saturating_add(2_000_000);
     let words32 = Oversampler {
         fs_hz: fs,
         start_ps,
@@ -517,15 +534,154 @@ pub fn hans(
                 .collect()
         })
         .collect();
-    // PLUG-IN (shared::hans::rx): feed `rings` (mode, fs) to the HANS-100 receiver and
-    // turn accepted / rejected frames into records.
-    Err(SimError::NotAvailable {
-        what: format!(
-            "decode --protocol hans ({mode:?}, {} sample words per channel)",
-            rings.first().map_or(0, Vec::len)
-        ),
-        needs: "the HANS-100 line receiver shared::hans::rx (not merged yet)",
-    })
+    let rx_mode = match mode {
+        HansMode::Normal(channel) => hans::rx::Mode::Normal { channel },
+        HansMode::Vote3 => hans::rx::Mode::Vote3 {
+            channels: [1, 2, 3],
+        },
+        HansMode::Vote5 => hans::rx::Mode::Vote5,
+        HansMode::Super => hans::rx::Mode::Super,
+    };
+    let mut rx =
+        hans::rx::HansRx::new(12_500_000 * u32::from(oversample), rx_mode).map_err(|e| {
+            SimError::BadOption {
+                option: "--hans-mode",
+                message: e.to_string(),
+            }
+        })?;
+    // `chunks[n - 1]` is channel n's ring; normal mode read only its one channel.
+    let first_ch = match mode {
+        HansMode::Normal(n) => usize::from(n.saturating_sub(1)),
+        _ => 0,
+    };
+    let words = rings.first().map_or(0, Vec::len);
+    let word_ps = 16.0 * 1e12 / fs;
+    let frame_ps = hans::FRAME_BITS as f64 * 1e12 / f64::from(hans::rx::BIT_RATE_HZ);
+    let mut out = Vec::new();
+    let mut sum = Summary::default();
+    let mut progress = super::encode::Progress::new("decode", words);
+    let mut last_frame_ns: Option<u64> = None;
+    for i in 0..words {
+        let mut chunks: [&[u16]; hans::rx::CHANNELS] = [&[]; hans::rx::CHANNELS];
+        for (k, ring) in rings.iter().enumerate() {
+            if let (Some(slot), Some(w)) = (chunks.get_mut(first_ch + k), ring.get(i..=i)) {
+                *slot = w;
+            }
+        }
+        let mut events = Vec::new();
+        rx.push(&chunks, &mut |e| events.push(e));
+        if events.is_empty() {
+            continue;
+        }
+        // The period closed in this word: the frame ended in it (or up to two words
+        // before, when a channel was missing), so it started one frame before; taking
+        // the word's middle keeps the error within about half a word (0.2-0.3 us).
+        let end_ps = start_ps + (i as f64 + 0.5) * word_ps;
+        let t_ns = Some(((end_ps - frame_ps) / 1000.0).round().max(0.0) as u64);
+        if let Some(rec) = hans_record(&events, t_ns, &mut sum) {
+            silence(&mut out, &mut sum, last_frame_ns, t_ns, frame_ps);
+            if matches!(rec, HansRecord::Frame { .. }) {
+                last_frame_ns = t_ns;
+            }
+            out.push(rec);
+        }
+        progress.tick(i + 1);
+    }
+    let capture_end = ((capture_end_ps as f64 - frame_ps) / 1000.0).max(0.0) as u64;
+    silence(
+        &mut out,
+        &mut sum,
+        last_frame_ns,
+        Some(capture_end),
+        frame_ps,
+    );
+    sum.resyncs = (1..=5).filter_map(|c| rx.stats(c)).map(|s| s.resyncs).sum();
+    Ok((out, sum))
+}
+
+/// A HANS-100 line never pauses, so a stretch without any record after a frame means
+/// the used channels went silent (stuck, open, out of sync): the receiver reports
+/// nothing for it, so the tool adds one error record at the first missing frame and
+/// counts the missing frames. Acquisition before the first frame is not a gap.
+fn silence(
+    out: &mut Vec<HansRecord>,
+    sum: &mut Summary,
+    last_frame_ns: Option<u64>,
+    now_ns: Option<u64>,
+    frame_ps: f64,
+) {
+    let (Some(last), Some(now)) = (last_frame_ns, now_ns) else {
+        return;
+    };
+    let frame_ns = frame_ps / 1000.0;
+    // Since the last frame: the last record's time (errors are not silence).
+    let from = match out.last() {
+        Some(HansRecord::Error { t_ns: Some(t), .. }) => (*t).max(last),
+        _ => last,
+    };
+    let missing = ((now.saturating_sub(from)) as f64 / frame_ns - 0.5).floor() as u64;
+    if missing >= 1 {
+        *sum.errors
+            .entry("no frame (lines silent)".to_owned())
+            .or_default() += missing as usize;
+        out.push(HansRecord::Error {
+            t_ns: Some(from + frame_ns.round() as u64),
+            error: format!("no frame for {missing} frame times (lines silent or out of sync)"),
+        });
+    }
+}
+
+/// A HANS-100 fault kind in words.
+fn hans_fault(kind: FaultKind) -> &'static str {
+    match kind {
+        FaultKind::CheckFailed => "frame check failed",
+        FaultKind::Resync => "lost alignment",
+        FaultKind::Disagree => "verified channels disagree",
+        FaultKind::Dropped => "input dropped",
+        FaultKind::Framing => "framing",
+    }
+}
+
+/// The record of one closed frame period from its receiver events: the frame if the
+/// mode published one; else an error naming the faults if the period was rejected
+/// (a channel or the vote failed its checks, channels disagreed); `None` for events
+/// that are not about a frame (a channel losing alignment). Every fault is counted.
+fn hans_record(
+    events: &[hans::rx::RxEvent],
+    t_ns: Option<u64>,
+    sum: &mut Summary,
+) -> Option<HansRecord> {
+    let mut frame = None;
+    let mut rejected: Vec<String> = Vec::new();
+    for e in events {
+        match *e {
+            hans::rx::RxEvent::Frame(f) => frame = Some(f),
+            hans::rx::RxEvent::Fault { channel, kind } => {
+                let what = match channel {
+                    Some(c) => format!("ch{c}: {}", hans_fault(kind)),
+                    None => format!("period: {}", hans_fault(kind)),
+                };
+                sum.error(&what);
+                if kind != FaultKind::Resync {
+                    rejected.push(what);
+                }
+            }
+        }
+    }
+    match frame {
+        Some(f) => {
+            sum.accepted += 1;
+            Some(HansRecord::Frame {
+                t_ns,
+                data: f.words(),
+            })
+        }
+        None if !rejected.is_empty() => Some(HansRecord::Error {
+            t_ns,
+            error: rejected.join("; "),
+        }),
+        None => None,
+    }
 }
 
 /// Backchannel: the `back` line -> UART bytes -> [`Parser`] -> records.
