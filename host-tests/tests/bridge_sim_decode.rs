@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use host_tests::sim::jsonl::{self, Channel, ForwardRecord};
+use host_tests::sim::jsonl::{self, Channel, ForwardRecord, HansRecord};
 
 const BIN: &str = env!("CARGO_BIN_EXE_bridge-sim");
 const LANES: [&str; 5] = ["x", "y", "z", "u", "w"];
@@ -533,4 +533,217 @@ fn xy2_capture_from_another_tool() {
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("clk"), "{err}");
+}
+
+// ---------------------------------------------------------------- HANS-100
+
+/// Frames the HANS-100 receiver needs before its first frame (start-edge hunting and
+/// a bit-rate measurement over one frame, see `shared::hans::rx`).
+const HANS_ACQUISITION: usize = 2;
+
+fn hans_records(text: &str) -> Vec<HansRecord> {
+    jsonl::parse::<HansRecord>(text)
+        .unwrap()
+        .into_iter()
+        .map(|(_, r)| r)
+        .collect()
+}
+
+fn hans_decode(vcd: &Path, args: &[&str]) -> (Vec<HansRecord>, String) {
+    let mut a = vec![
+        "decode",
+        "--protocol",
+        "hans",
+        "--input",
+        vcd.to_str().unwrap(),
+    ];
+    a.extend_from_slice(args);
+    let o = ok(&a);
+    (hans_records(&o.stdout), o.stderr)
+}
+
+fn t_of(r: &HansRecord) -> u64 {
+    match r {
+        HansRecord::Frame { t_ns, .. } | HansRecord::Error { t_ns, .. } => t_ns.unwrap(),
+    }
+}
+
+/// Decoded frames are the frames sent after the acquisition, in order, none missing;
+/// `t_ns` within `tol_ns`.
+fn assert_hans_same(got: &[HansRecord], want: &[HansRecord], tol_ns: u64, what: &str) {
+    assert_eq!(
+        got.len(),
+        want.len() - HANS_ACQUISITION,
+        "{what}: frame count"
+    );
+    for (g, w) in got.iter().zip(&want[HANS_ACQUISITION..]) {
+        let (HansRecord::Frame { data: gd, .. }, HansRecord::Frame { data: wd, .. }) = (g, w)
+        else {
+            panic!("{what}: {g:?} for {w:?}");
+        };
+        assert_eq!(gd, wd, "{what}");
+        assert!(
+            t_of(g).abs_diff(t_of(w)) <= tol_ns,
+            "{what}: {g:?} for {w:?}"
+        );
+    }
+}
+
+#[test]
+fn hans_generate_decode_round_trips_every_mode_with_impairments() {
+    let d = dir("hans_modes");
+    let vcd = d.join("h.vcd");
+    let jl = d.join("h.jsonl");
+    ok(&[
+        "generate",
+        "--protocol",
+        "hans",
+        "--pattern",
+        "random",
+        "--frames",
+        "150",
+        "--rate-offset-ppm",
+        "2000",
+        "--jitter-ns",
+        "3",
+        "--skew",
+        "ch3=20",
+        "--output",
+        vcd.to_str().unwrap(),
+        "--frames-out",
+        jl.to_str().unwrap(),
+    ]);
+    let want = hans_records(&std::fs::read_to_string(&jl).unwrap());
+    // 0.2 % over 1.5 ms is 3 us; the receiver reports to the word (<= 0.43 us).
+    let tol = t_of(want.last().unwrap()) / 500 + 500;
+    for mode in ["super", "vote3", "vote5", "normal:1", "normal:5"] {
+        for (os, seed) in [("3", "1"), ("4", "977")] {
+            let (got, summary) = hans_decode(
+                &vcd,
+                &["--hans-mode", mode, "--hans-oversample", os, "--seed", seed],
+            );
+            let what = format!("{mode} {os}x");
+            assert_hans_same(&got, &want, tol, &what);
+            assert!(summary.contains("errors 0"), "{what}: {summary}");
+        }
+    }
+}
+
+#[test]
+fn hans_noise_and_stuck_channel_per_mode() {
+    let d = dir("hans_faults");
+    let vcd = d.join("h.vcd");
+    let jl = d.join("h.jsonl");
+    ok(&[
+        "generate",
+        "--protocol",
+        "hans",
+        "--pattern",
+        "random",
+        "--frames",
+        "300",
+        "--noise",
+        "ch2,1000,1300,20,60",
+        "--stuck",
+        "ch4,2000,0",
+        "--output",
+        vcd.to_str().unwrap(),
+        "--frames-out",
+        jl.to_str().unwrap(),
+    ]);
+    let want = hans_records(&std::fs::read_to_string(&jl).unwrap());
+    // Super and vote5 ride through both: every frame after the acquisition. (A period
+    // missing a channel closes two words late, so `t_ns` may be ~0.8 us late.)
+    for mode in ["super", "vote5"] {
+        let (got, summary) = hans_decode(&vcd, &["--hans-mode", mode]);
+        assert_hans_same(&got, &want, 1000, mode);
+        assert!(summary.contains("ch2: frame check failed"), "{summary}");
+    }
+    // Channel 2 alone: errors only in the burst (one frame of margin), frames exact
+    // elsewhere.
+    let (got, summary) = hans_decode(&vcd, &["--hans-mode", "normal:2"]);
+    let burst = 990_000..1_310_000;
+    let mut errors = 0;
+    for g in &got {
+        match g {
+            HansRecord::Error { .. } => {
+                assert!(burst.contains(&t_of(g)), "{g:?}");
+                errors += 1;
+            }
+            HansRecord::Frame { data, .. } => {
+                let w = want
+                    .iter()
+                    .min_by_key(|w| t_of(w).abs_diff(t_of(g)))
+                    .unwrap();
+                assert!(matches!(w, HansRecord::Frame { data: wd, .. } if wd == data));
+            }
+        }
+    }
+    assert!(errors > 0, "{summary}");
+    let outside = |v: &[HansRecord]| {
+        v.iter()
+            .filter(|r| !burst.contains(&t_of(r)))
+            .filter(|r| matches!(r, HansRecord::Frame { .. }))
+            .count()
+    };
+    assert_eq!(outside(&got), outside(&want) - HANS_ACQUISITION);
+    // Channel 4 alone: frames until it sticks, then an error and silence reported.
+    let (got, summary) = hans_decode(&vcd, &["--hans-mode", "normal:4"]);
+    let frames_before = want
+        .iter()
+        .filter(|r| t_of(r) + 10_000 <= 2_000_000)
+        .count();
+    let n_frames = got
+        .iter()
+        .filter(|r| matches!(r, HansRecord::Frame { .. }))
+        .count();
+    assert_eq!(n_frames, frames_before - HANS_ACQUISITION);
+    assert!(got
+        .iter()
+        .all(|r| matches!(r, HansRecord::Frame { .. }) || t_of(r) >= 1_990_000));
+    assert!(
+        matches!(got.last(), Some(HansRecord::Error { error, .. }) if error.contains("no frame")),
+        "{:?}",
+        got.last()
+    );
+    assert!(summary.contains("no frame (lines silent)"), "{summary}");
+}
+
+#[test]
+fn hans_encode_decode_fixture_keeps_the_error_in_place() {
+    let d = dir("hans_fixture");
+    // Lead-in frames for the receiver's acquisition, then the hand-written fixture.
+    let lead = r#"{"x":{"pos":524288,"bits":20},"y":{"pos":524288,"bits":20},"z":{"pos":524288,"bits":20}}"#;
+    let fixture = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/fixtures/sim_hans.jsonl"
+    ))
+    .unwrap();
+    let text = format!("{lead}\n{lead}\n{fixture}");
+    let jl = d.join("in.jsonl");
+    std::fs::write(&jl, &text).unwrap();
+    let vcd = d.join("h.vcd");
+    ok(&[
+        "encode",
+        "--protocol",
+        "hans",
+        "--frames",
+        jl.to_str().unwrap(),
+        "--output",
+        vcd.to_str().unwrap(),
+    ]);
+    let want = hans_records(&text);
+    for mode in ["super", "normal:3"] {
+        let (got, _) = hans_decode(&vcd, &["--hans-mode", mode]);
+        assert_eq!(got.len(), want.len() - HANS_ACQUISITION, "{mode}: {got:?}");
+        for (g, w) in got.iter().zip(&want[HANS_ACQUISITION..]) {
+            match (g, w) {
+                (HansRecord::Frame { data, .. }, HansRecord::Frame { data: wd, .. }) => {
+                    assert_eq!(data, wd)
+                }
+                (HansRecord::Error { .. }, HansRecord::Error { .. }) => {}
+                _ => panic!("{mode}: {g:?} for {w:?}"),
+            }
+        }
+    }
 }
