@@ -11,10 +11,12 @@
 //! - [`xy2`]: XY2-100 and XY2-100E.
 //! - [`xy3`]: XY3-100 forward frames, commands and the RS485 backchannel.
 //! - [`hans`]: the HANS-100 protocol.
+//! - [`bridge`]: the bridge engine (configuration, translation, supervision, status).
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
+pub mod bridge;
 pub mod hans;
 pub mod model;
 pub mod xy2;

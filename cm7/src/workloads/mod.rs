@@ -4,6 +4,7 @@
 //! is optimised away. One file per protocol; each exports `WORKLOADS`, listed in
 //! [`GROUPS`].
 
+pub mod bridge;
 pub mod hans;
 pub mod model;
 pub mod xy2;
@@ -52,4 +53,5 @@ pub const GROUPS: &[&[Workload]] = &[
     xy2::WORKLOADS,
     xy3::WORKLOADS,
     hans::WORKLOADS,
+    bridge::WORKLOADS,
 ];
