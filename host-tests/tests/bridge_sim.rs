@@ -855,13 +855,6 @@ fn missing_engines_say_so() {
     ]);
     for args in [
         vec![
-            "decode",
-            "--protocol",
-            "xy2",
-            "--input",
-            vcd.to_str().unwrap(),
-        ],
-        vec![
             "bridge",
             "--config",
             "b.toml",

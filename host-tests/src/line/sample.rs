@@ -37,6 +37,12 @@ impl PinMap {
 /// bit, as the timer-triggered DMA of IDR does. Signals for unmapped optional pins
 /// (Z, STATUS) need not exist; mapped ones must.
 pub fn xy2_port_words(wave: &Waveform, pins: &PinMap) -> Result<Vec<u16>, LineError> {
+    xy2_port_samples(wave, pins).map(|(words, _)| words)
+}
+
+/// [`xy2_port_words`] plus the time of every sample (the CLK falling edge), a parallel
+/// vector: the firmware's samples carry no time, a decoder on the host wants one.
+pub fn xy2_port_samples(wave: &Waveform, pins: &PinMap) -> Result<(Vec<u16>, Vec<Ps>), LineError> {
     let pins = pins.pins();
     let bits: Vec<u8> = pins.iter().map(|&(b, _)| b).collect();
     check_bits(&bits, 16)?;
@@ -45,14 +51,16 @@ pub fn xy2_port_words(wave: &Waveform, pins: &PinMap) -> Result<Vec<u16>, LineEr
         .iter()
         .map(|&(b, name)| signal(wave, name).map(|s| (b, s)))
         .collect::<Result<Vec<_>, _>>()?;
-    Ok(clk
-        .falling_edges()
-        .map(|t| {
+    let times: Vec<Ps> = clk.falling_edges().collect();
+    let words = times
+        .iter()
+        .map(|&t| {
             sigs.iter()
                 .filter(|(_, s)| s.level_at(t))
                 .fold(0u16, |w, &(b, _)| w | (1u16 << b))
         })
-        .collect())
+        .collect();
+    Ok((words, times))
 }
 
 /// What an SPI slave does with an incomplete byte when NSS rises.
@@ -80,6 +88,12 @@ pub struct SpiCapture {
     pub frame_ends: Vec<u32>,
     /// Bits still in the shift register at the end of the waveform (not delivered).
     pub pending_bits: u8,
+    /// Per delivered byte (same index as in `bytes`): the times of its first and last
+    /// bit sample (CLK falling edges). The firmware's bytes carry no time; a decoder on
+    /// the host wants one.
+    pub byte_times: Vec<(Ps, Ps)>,
+    /// Per entry of `frame_ends`: the time of that SYNC (NSS) rising edge.
+    pub end_times: Vec<Ps>,
 }
 
 /// Emulates one SPI slave per data line: SCK = `CLK`, NSS = `SYNC` (active low), 8-bit
@@ -109,9 +123,11 @@ pub fn xy3_spi(
     let mut shift: Vec<u8> = vec![0; data.len()];
     let mut nbits: u8 = 0;
     let mut received: u32 = 0;
+    let mut first_bit: Ps = 0;
     for (t, nss_rise) in events {
         if nss_rise {
             cap.frame_ends.push(received);
+            cap.end_times.push(t);
             if partial == PartialByte::Discard {
                 nbits = 0;
                 shift.iter_mut().for_each(|s| *s = 0);
@@ -124,8 +140,12 @@ pub fn xy3_spi(
         for (reg, line) in shift.iter_mut().zip(&data) {
             *reg = (*reg << 1) | u8::from(line.level_at(t));
         }
+        if nbits == 0 {
+            first_bit = t;
+        }
         nbits += 1;
         if nbits == 8 {
+            cap.byte_times.push((first_bit, t));
             for (out, reg) in cap.bytes.iter_mut().zip(shift.iter_mut()) {
                 out.push(*reg);
                 *reg = 0;

@@ -235,13 +235,14 @@ pub fn run(cli: &Cli) -> Result<(), SimError> {
         // PLUG-IN (shared::bridge): run the engine on the capture; write head-side VCDs.
         Some(Cmd::Bridge(_)) => Err(SimError::NotAvailable {
             what: "bridge".to_owned(),
-            needs: "the bridge engine shared::bridge (not merged yet)",
+            needs: "the bridge engine (shared::bridge) wired into bridge-sim (not done yet)",
         }),
-        // PLUG-IN (shared::bridge + shared::xy2::rx): the XY2-100 -> HANS-100 demo.
+        // PLUG-IN (shared::bridge + shared::xy2::rx + shared::hans::tx): the XY2-100 ->
+        // HANS-100 demo.
         None => Err(SimError::NotAvailable {
             what: "the demo (XY2-100 controller bridged to a HANS-100 head)".to_owned(),
-            needs: "the bridge engine shared::bridge and the receivers (not merged yet); \
-                    `bridge-sim --help` lists the commands that work now",
+            needs: "the bridge engine (shared::bridge) wired into bridge-sim (not done \
+                    yet); `bridge-sim --help` lists the commands that work now",
         }),
     }
 }
