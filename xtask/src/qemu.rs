@@ -1,6 +1,6 @@
 //! The `cm7` crate under QEMU: the on-target tests of `shared` and the instruction-count
 //! bench, both on an emulated Cortex-M7 (`mps2-an500`) with semihosting for output and
-//! exit status. See `cm7/README-cm7.md`.
+//! exit status. See the README, section "On-target checks".
 
 use crate::{cargo, root, Result, MCU};
 use std::fs;

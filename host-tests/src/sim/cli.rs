@@ -1,4 +1,4 @@
-//! The `bridge-sim` command line and its commands (see `SIM.md`).
+//! The `bridge-sim` command line and its commands (see the README, section "bridge-sim").
 //!
 //! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage (clap), 3 a command whose
 //! engine is not merged yet.

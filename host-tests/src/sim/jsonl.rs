@@ -1,4 +1,4 @@
-//! The JSON-lines formats of `bridge-sim` (one JSON object per line; see `SIM.md`).
+//! The JSON-lines formats of `bridge-sim` (one JSON object per line; see the README, section "bridge-sim").
 //!
 //! - XY2-100 / XY3-100 ([`ForwardRecord`]): `{"t_ns": T, "x": CH, "y": CH, ...}` with a
 //!   key per channel present; CH is [`Channel`]: `{"pos": P, "bits": 16|18|20|26}`,

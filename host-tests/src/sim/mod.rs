@@ -1,5 +1,5 @@
 //! The `bridge-sim` tool: decode captures, encode and generate waveforms (issue 7).
-//! `SIM.md` next to `Cargo.toml` documents the commands and the formats.
+//! The README (section "bridge-sim") documents the commands and the formats.
 //!
 //! Pieces:
 //! - [`jsonl`] — the JSON-lines formats (one record per frame / packet), parse and print;
