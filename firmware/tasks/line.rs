@@ -27,7 +27,7 @@ use super::Irqs;
 use crate::board::{HansOutRes, HansStatusInRes, WaveRes, Xy2InRes, Xy3InRes};
 use embassy_time::Instant;
 use shared::bridge::{Bridge, Config, LinkState, Protocol, StatusForm, Timing, ZSource};
-use shared::model::{Axis, ForwardFrame};
+use shared::model::{Axis, ForwardFrame, LineEvent};
 use shared::xy3::neutral::{command_frame, position_frame};
 use shared::xy3::FrameSize;
 use shared::{xy2, xy3};
@@ -179,6 +179,10 @@ const XY2_BIT_HZ: u32 = 2_000_000;
 /// = 5 MHz, already exact).
 const XY3_IDLE_32: u8 = 16;
 
+/// Input events buffered per batch: up to three XY2 halves of 25 frame periods, each
+/// a frame or up to three channel faults, plus framing events.
+const MAX_EVENTS: usize = 128;
+
 /// XY2-100 input pins on port G (board wiring: PG0 SYNC, PG1 X, PG2 Y, PG3 Z).
 const XY2_IN_PINS: xy2::rx::PinMap = xy2::rx::PinMap {
     sync: 0,
@@ -189,8 +193,8 @@ const XY2_IN_PINS: xy2::rx::PinMap = xy2::rx::PinMap {
 
 /// The head-side encoder: neutral frames -> BSRR words of one frame slot.
 enum Encoder {
-    /// XY2-100 with the head's position mode.
-    Xy2(xy2::tx::Transmitter, xy2::Mode),
+    /// XY2-100 with the head's position mode; `z` = the Z line is driven.
+    Xy2(xy2::tx::Transmitter, xy2::Mode, bool),
     /// XY3-100 with the head's frame size; `z` = the Z line is driven.
     Xy3(xy3::tx::Transmitter, FrameSize, bool),
 }
@@ -217,7 +221,7 @@ impl Encoder {
                     parity: h.parity,
                 };
                 xy2::tx::Transmitter::new(pins, ticks, link)
-                    .map(|t| Encoder::Xy2(t, h.mode))
+                    .map(|t| Encoder::Xy2(t, h.mode, z))
                     .map_err(|_| "XY2-100 transmitter refused the frame rate")
             }
             Protocol::Xy3 => {
@@ -246,7 +250,7 @@ impl Encoder {
 
     fn ticks_per_frame(&self) -> usize {
         match self {
-            Encoder::Xy2(t, _) => t.ticks_per_frame(),
+            Encoder::Xy2(t, ..) => t.ticks_per_frame(),
             Encoder::Xy3(t, ..) => t.ticks_per_frame(),
         }
     }
@@ -262,7 +266,7 @@ impl Encoder {
     /// this slot rather than a guessed one. Returns whether a frame was written.
     fn encode(&self, frame: Option<&ForwardFrame>, slot: &mut [u32]) -> bool {
         match self {
-            Encoder::Xy2(t, mode) => {
+            Encoder::Xy2(t, mode, z) => {
                 let f = frame.and_then(|f| {
                     let pos = |a: Axis| f.axis(a).map(|p| xy2::Frame::from_position(p, *mode));
                     // A command rides on X in place of the position (XY2-100 enhanced).
@@ -270,10 +274,13 @@ impl Encoder {
                         .command
                         .and_then(xy2::Frame::from_command)
                         .or(pos(Axis::X))?;
+                    // A driven Z line needs a Z frame: all-zero bits would be an
+                    // invalid frame on the head's Z channel.
+                    let z = if *z { Some(pos(Axis::Z)?) } else { None };
                     Some(xy2::tx::TxFrame {
                         x,
                         y: pos(Axis::Y)?,
-                        z: pos(Axis::Z),
+                        z,
                     })
                 });
                 match f {
@@ -294,15 +301,14 @@ impl Encoder {
                     let zf = if *z { Some(pos(Axis::Z)?) } else { None };
                     Some([Some(x), Some(pos(Axis::Y)?), zf, None, None])
                 });
-                match frames {
-                    Some(fr) => t.encode(&fr, slot).is_ok() || t.idle(slot).is_err(),
-                    None => {
-                        // A slot of the right length always idles; on error the
-                        // ring keeps what it had, which is older idle or frames.
-                        let _ = t.idle(slot);
-                        false
+                if let Some(fr) = frames {
+                    if t.encode(&fr, slot).is_ok() {
+                        return true;
                     }
                 }
+                // `slot` is exactly one frame period long, which is all `idle` checks.
+                let _ = t.idle(slot);
+                false
             }
         }
     }
@@ -432,35 +438,51 @@ pub async fn bridge_wave_out(
     let mut status = [0u16; WAVE_BATCH];
     let mut started = false;
     let mut slot_ns = 0u64;
+    let mut events: heapless::Vec<LineEvent, MAX_EVENTS> = heapless::Vec::new();
     loop {
         let now_ns = Instant::now().as_micros().saturating_mul(1000);
-        // Input: every raw half that arrived since the last batch.
+        // Input: every raw half that arrived since the last batch, decoded into
+        // neutral events (in time order).
+        events.clear();
         while let Ok(raw) = RAW_INPUT.try_receive() {
-            match &mut decoder {
-                Decoder::Xy2(rx) => {
-                    rx.feed(&raw, &mut |ev| {
-                        ev.line_events(&mut |le| {
-                            // Free-running only (checked above): the engine keeps
-                            // the newest frame for the next `tick`, so the returned
-                            // immediate output is always `None` here.
-                            let _ = bridge.on_line_event(now_ns, le);
-                        })
-                    });
-                }
-                Decoder::None => {}
+            if let Decoder::Xy2(rx) = &mut decoder {
+                rx.feed(&raw, &mut |ev| {
+                    ev.line_events(&mut |le| {
+                        if events.push(le).is_err() {
+                            Stats::bump(&STATS.input_overruns);
+                        }
+                    })
+                });
             }
         }
         // Head status from the status tasks (XY2 level, XY3 backchannel).
         if let Some(s) = head_status.try_changed() {
             *bridge.head_status_mut() = s;
-            bridge.status_seen(now_ns);
+            bridge.status_seen(slot_ns.max(now_ns));
         } else if level_status {
-            bridge.status_seen(now_ns);
+            bridge.status_seen(slot_ns.max(now_ns));
         }
-        // Output: one tick per frame slot, slot times continuing from the last batch.
+        // Output: one tick per frame slot. The input events are spread over the
+        // batch's slots in order (the input half and the output batch cover about the
+        // same time), so consecutive input frames reach consecutive slots instead of
+        // all but the newest being skipped. Slot times continue from the last batch
+        // and never go back, so the bridge sees one monotonic clock.
         slot_ns = slot_ns.max(now_ns);
+        let n_events = events.len();
+        let mut next_event = 0;
         let mut gate = false;
-        for slot in batch.chunks_exact_mut(tpf).take(frames_per_batch) {
+        for (i, slot) in batch
+            .chunks_exact_mut(tpf)
+            .take(frames_per_batch)
+            .enumerate()
+        {
+            let due = (i + 1) * n_events / frames_per_batch;
+            for le in events.get(next_event..due).unwrap_or_default() {
+                // Free-running only (checked above): the engine keeps the newest
+                // frame for the next `tick`; the immediate output is always `None`.
+                let _ = bridge.on_line_event(slot_ns, *le);
+            }
+            next_event = due.max(next_event);
             let o = bridge.tick(slot_ns);
             slot_ns = slot_ns.saturating_add(period_ns);
             started |= o.state == LinkState::Running;
