@@ -179,6 +179,10 @@ const XY2_BIT_HZ: u32 = 2_000_000;
 /// = 5 MHz, already exact).
 const XY3_IDLE_32: u8 = 16;
 
+/// Gate-on history mask: the batch computed now and the two ahead of the one playing
+/// must all have the gate on (see the gate in [`bridge_wave_out`]).
+const GATE_ON_BATCHES: u8 = 0b111;
+
 /// Input events buffered per batch: up to three XY2 halves of 25 frame periods, each
 /// a frame or up to three channel faults, plus framing events.
 const MAX_EVENTS: usize = 128;
@@ -438,6 +442,7 @@ pub async fn bridge_wave_out(
     let mut status = [0u16; WAVE_BATCH];
     let mut started = false;
     let mut slot_ns = 0u64;
+    let mut gate_history = 0u8;
     let mut events: heapless::Vec<LineEvent, MAX_EVENTS> = heapless::Vec::new();
     loop {
         let now_ns = Instant::now().as_micros().saturating_mul(1000);
@@ -470,7 +475,7 @@ pub async fn bridge_wave_out(
         slot_ns = slot_ns.max(now_ns);
         let n_events = events.len();
         let mut next_event = 0;
-        let mut gate = false;
+        let mut gate = true;
         for (i, slot) in batch
             .chunks_exact_mut(tpf)
             .take(frames_per_batch)
@@ -490,10 +495,16 @@ pub async fn bridge_wave_out(
             if encoder.encode(frame, slot) {
                 Stats::bump(&STATS.output_frames);
             }
-            gate = o.laser.gate;
+            gate &= o.laser.gate;
             LINK_RUNNING.store(o.state == LinkState::Running, Ordering::Relaxed);
         }
-        set_laser_gate(gate);
+        // The batch just computed plays two batches from now (the ring holds the
+        // playing batch and the queued one). Gate off at once, as soon as any slot
+        // ahead says so; gate on only once the batch now playing was computed with
+        // the gate on, so the laser never fires before the head has the first
+        // forwarded position.
+        gate_history = (gate_history << 1 | u8::from(gate)) & GATE_ON_BATCHES;
+        set_laser_gate(gate_history == GATE_ON_BATCHES);
         let ok = ctrl_level.health(bridge.xy2_status_line_high()) == xy2::Health::Ok;
         CTRL_STATUS_OK.store(ok, Ordering::Relaxed);
         BRIDGE_BEAT.fetch_add(1, Ordering::Relaxed);
