@@ -187,13 +187,18 @@ const GATE_ON_BATCHES: u8 = 0b111;
 /// a frame or up to three channel faults, plus framing events.
 const MAX_EVENTS: usize = 128;
 
-/// XY2-100 input pins on port G (board wiring: PG0 SYNC, PG1 X, PG2 Y, PG3 Z).
-const XY2_IN_PINS: xy2::rx::PinMap = xy2::rx::PinMap {
-    sync: 0,
-    x: 1,
-    y: 2,
-    z: Some(3),
-};
+/// XY2-100 input pins on port G (board wiring: PG0 SYNC, PG1 X, PG2 Y, PG3 Z). Z is
+/// received only with `z.source = "input"`: a frame period counts only if every
+/// received channel decodes, so an unconnected Z input (reading the RS-422 fail-safe
+/// level) would otherwise reject every frame.
+fn xy2_in_pins(config: &Config) -> xy2::rx::PinMap {
+    xy2::rx::PinMap {
+        sync: 0,
+        x: 1,
+        y: 2,
+        z: (config.z.source == ZSource::Input).then_some(3),
+    }
+}
 
 /// The head-side encoder: neutral frames -> BSRR words of one frame slot.
 enum Encoder {
@@ -379,7 +384,7 @@ pub async fn bridge_wave_out(
                 mode: config.controller.xy2.mode,
                 parity: config.controller.xy2.parity,
             };
-            match xy2::rx::Receiver::new(XY2_IN_PINS, link) {
+            match xy2::rx::Receiver::new(xy2_in_pins(&config), link) {
                 Ok(rx) => Decoder::Xy2(rx),
                 Err(e) => {
                     defmt::error!("bridge: xy2 receiver: {}", e);
