@@ -407,7 +407,16 @@ pub async fn bridge_wave_out(
     let idle = idle_word(head);
     let rate = config.output.frame_rate_hz;
     let tpf = encoder.ticks_per_frame();
-    let frames_per_batch = (WAVE_BATCH / tpf.max(1)).max(1);
+    if tpf == 0 || tpf > WAVE_BATCH {
+        // XY2-100 below 4 kHz: one frame period is longer than a batch.
+        defmt::error!(
+            "bridge: {} ticks per frame do not fit a {}-word batch; output stays idle",
+            tpf,
+            WAVE_BATCH
+        );
+        return;
+    }
+    let frames_per_batch = WAVE_BATCH / tpf;
     let ring = dma_ring!(".sram2", u32, 2 * WAVE_BATCH);
     let tick_hz = encoder.tick_hz(rate);
     let mut out = match WaveOut::new(r.tim, r.dma, Irqs, pac::GPIOD, ring, idle, tick_hz) {
