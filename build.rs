@@ -1,11 +1,28 @@
-//! Puts `memory.x` on the linker path and adds the Cortex-M link scripts for the
-//! firmware's binaries and test binaries only. Host builds of the workspace never run this script (it
-//! belongs to the root firmware package), so they get no embedded link flags.
+//! Two jobs, both for the firmware's binaries and test binaries only (host builds of
+//! the workspace never run this script: it belongs to the root firmware package):
+//!
+//! 1. **Bake the bridge configuration** (issue 6): read `bridge.toml` (or the file named
+//!    by `XY_BRIDGE_CONFIG`), parse it into `shared::bridge::Config` and run
+//!    `Config::validate()` -- the same types and checks the host tools and tests use --
+//!    and write it postcard-encoded to `OUT_DIR/bridge_config.bin`, which
+//!    `firmware/config.rs` includes and decodes at boot. A file that does not parse or
+//!    validate stops the build with a message naming the key.
+//! 2. Put `memory.x` on the linker path and add the Cortex-M link scripts.
 
-use std::{env, fs, path::PathBuf};
+use std::{env, fs, path::PathBuf, process};
+
+use shared::bridge::Config;
+
+/// Environment variable naming another configuration file (relative to the package
+/// root, or absolute).
+const CONFIG_ENV: &str = "XY_BRIDGE_CONFIG";
+/// The file used when the variable is not set.
+const DEFAULT_CONFIG: &str = "bridge.toml";
 
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
+    bake_config(&out);
+
     fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x to OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
     println!("cargo:rerun-if-changed=memory.x");
@@ -24,4 +41,39 @@ fn main() {
     println!("cargo:rustc-link-arg-tests=-Tembedded-test.x");
     // embedded-test's macro emits `cfg(rust_analyzer)`; declare it so check-cfg is quiet.
     println!("cargo::rustc-check-cfg=cfg(rust_analyzer)");
+}
+
+/// Parses, validates and writes the configuration; exits with a message on any error.
+fn bake_config(out: &std::path::Path) {
+    println!("cargo:rerun-if-env-changed={CONFIG_ENV}");
+    let path = env::var_os(CONFIG_ENV)
+        .map(PathBuf::from)
+        .unwrap_or_else(|| PathBuf::from(DEFAULT_CONFIG));
+    println!("cargo:rerun-if-changed={}", path.display());
+    let shown = path.display();
+
+    let text = fs::read_to_string(&path).unwrap_or_else(|e| {
+        fail(&format!(
+            "cannot read bridge configuration {shown}: {e} (set {CONFIG_ENV} to another file)"
+        ))
+    });
+    // toml's error names the key and shows the offending line.
+    let config: Config = toml::from_str(&text).unwrap_or_else(|e| {
+        fail(&format!(
+            "bridge configuration {shown} does not parse:\n{e}"
+        ))
+    });
+    if let Err(e) = config.validate() {
+        // ConfigError's Display starts with the key, e.g. `head.xy2.enhanced_commands: ...`.
+        fail(&format!("bridge configuration {shown} is invalid: {e}"));
+    }
+    let bytes = postcard::to_stdvec(&config)
+        .unwrap_or_else(|e| fail(&format!("cannot encode the bridge configuration: {e}")));
+    fs::write(out.join("bridge_config.bin"), bytes).expect("write OUT_DIR/bridge_config.bin");
+}
+
+/// Stops the build. Cargo prints a failed build script's stderr.
+fn fail(message: &str) -> ! {
+    eprintln!("error: {message}");
+    process::exit(1)
 }

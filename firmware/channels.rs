@@ -14,20 +14,25 @@
 //!
 //! Flow (`[H]` = high-priority executor, others thread mode):
 //! ```text
-//! [H] xy2_in / xy3_in / hans_status_in --RAW_INPUT--> [H] bridge --(issue 4/5)-->
-//! [H] wave_out, hans_out  <--HANS_FRAME-- (bridge, once decoders exist)
-//! status_level_in / backchannel RX --HEAD_STATUS--> status_level_out, backchannel TX
-//! (bridge, once decoders exist) --BACK_RATE--> backchannel
+//! [H] xy2_in / xy3_in / hans_status_in --RAW_INPUT--> [H] bridge_wave_out
+//!     (receiver -> Bridge -> transmitter -> waveform ring; LASER_GATE, BRIDGE_BEAT,
+//!      LINK_RUNNING, CTRL_STATUS_OK)
+//! [H] hans_out <--HANS_FRAME-- (not fed by the bridge yet: README "What is left")
+//! status_level_in / backchannel RX --HEAD_STATUS--> bridge_wave_out, backchannel TX
+//! CTRL_STATUS_OK --> status_level_out;  BACK_RATE --> backchannel
 //! supervisor --HEALTH--> leds;  everyone --STATS--> stats
 //! ```
 
-use core::sync::atomic::{AtomicU32, Ordering};
+use core::cell::RefCell;
+use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+
+use embassy_stm32::gpio::Output;
+use embassy_sync::blocking_mutex::Mutex;
 
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use embassy_sync::watch::Watch;
-use heapless::Vec;
 use shared::hans::frame::Frame as HansFrame;
 use shared::model::HeadStatus;
 use shared::xy3::BackRate;
@@ -35,8 +40,7 @@ use shared::xy3::BackRate;
 /// Overall state shown on the LEDs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub struct Health {
-    /// Valid input frames are arriving (the laser gate may open). Stays false until
-    /// the line-level decoders (issues 4/5) run in `tasks::line::bridge`.
+    /// Valid input frames are arriving (the bridge's link state is `Running`).
     pub input_valid: bool,
     /// A fault is latched (watchdog reset at boot, link fault): red LED.
     pub fault: bool,
@@ -59,28 +63,14 @@ pub const XY3_MARKS: usize = XY3_HALF / 3 + 1;
 /// 16-bit words per HANS STATUS input half-buffer (8192 samples at 40 MHz = 205 us).
 pub const HANS_HALF: usize = 512;
 
-/// One DMA half-buffer of raw line data, in time order, exactly as `layouts.md`
-/// defines it. TODO(issue 4 / issue 5): replace by decoded `LineEvent`s once the
-/// line-level receivers (`shared/src/*/rx.rs`) are on main; the bridge task then
-/// runs them in place instead of counting.
-#[derive(Clone)]
-pub enum RawInput {
-    /// XY2-100 port samples (`layouts.md` §1).
-    Xy2([u16; XY2_HALF]),
-    /// XY3-100 X line bytes and frame-end positions (monotonic byte counts, §2).
-    Xy3 {
-        /// X ring bytes.
-        bytes: [u8; XY3_HALF],
-        /// SYNC rising edges in this half.
-        marks: Vec<u32, XY3_MARKS>,
-    },
-    /// HANS-100 STATUS oversampled words (§3).
-    HansStatus([u16; HANS_HALF]),
-}
+/// One DMA half-buffer of XY2-100 port samples (`layouts.md` §1), in time order.
+/// The bridge (`tasks::line::bridge_wave_out`) runs the XY2 receiver on it.
+pub type RawInput = [u16; XY2_HALF];
 
-/// Raw input halves from the receivers to the bridge. Two slots: one being filled by
-/// the DMA's next half, one being decoded; a third would only hide a slow bridge.
-pub static RAW_INPUT: Channel<CriticalSectionRawMutex, RawInput, 2> = Channel::new();
+/// Raw input halves from the receivers to the bridge. The bridge drains it once per
+/// output batch (about one DMA half), so three slots cover a half arriving while the
+/// bridge waits for output space; a fourth would only hide a slow bridge.
+pub static RAW_INPUT: Channel<CriticalSectionRawMutex, RawInput, 3> = Channel::new();
 
 /// The newest HANS-100 frame for the head (written two slots ahead by `hans_out`).
 pub static HANS_FRAME: Signal<CriticalSectionRawMutex, HansFrame> = Signal::new();
@@ -91,6 +81,32 @@ pub static BACK_RATE: Signal<CriticalSectionRawMutex, BackRate> = Signal::new();
 /// What the head reports, in the neutral model.
 pub static HEAD_STATUS: Watch<CriticalSectionRawMutex, HeadStatus, 2> = Watch::new();
 
+/// The laser gate pin (PF13, high = laser may fire), shared by the bridge (which
+/// follows `Output.laser.gate` every output batch) and the supervisor (which forces it
+/// off when the bridge stops making progress). `None` until `main` hands it over.
+pub static LASER_GATE: Mutex<CriticalSectionRawMutex, RefCell<Option<Output<'static>>>> =
+    Mutex::new(RefCell::new(None));
+
+/// Drives the laser gate, if it has been handed over.
+pub fn set_laser_gate(on: bool) {
+    LASER_GATE.lock(|g| {
+        if let Some(pin) = g.borrow_mut().as_mut() {
+            pin.set_level(on.into());
+        }
+    });
+}
+
+/// Output batches the bridge has completed (wrapping); the supervisor drops the gate
+/// when this stops moving.
+pub static BRIDGE_BEAT: AtomicU32 = AtomicU32::new(0);
+
+/// The bridge's link state is `Running` (valid input frames arrive).
+pub static LINK_RUNNING: AtomicBool = AtomicBool::new(false);
+
+/// XY2-100 STATUS towards the controller means "OK" (from the bridge's
+/// `xy2_status_line_high`, i.e. head alarms merged with the bridge's own).
+pub static CTRL_STATUS_OK: AtomicBool = AtomicBool::new(false);
+
 /// Counters for the once-a-second summary.
 pub struct Stats {
     /// Raw input halves handed to the bridge.
@@ -99,6 +115,8 @@ pub struct Stats {
     pub input_overruns: AtomicU32,
     /// XY3 frame-end marks seen.
     pub sync_marks: AtomicU32,
+    /// Frames the bridge sent to the head (idle slots not counted).
+    pub output_frames: AtomicU32,
     /// Output halves written (waveform) / HANS ring laps.
     pub output_halves: AtomicU32,
     /// Output underruns (DMA replayed stale words).
@@ -130,6 +148,7 @@ pub static STATS: Stats = Stats {
     input_halves: AtomicU32::new(0),
     input_overruns: AtomicU32::new(0),
     sync_marks: AtomicU32::new(0),
+    output_frames: AtomicU32::new(0),
     output_halves: AtomicU32::new(0),
     output_underruns: AtomicU32::new(0),
     back_packets: AtomicU32::new(0),

@@ -1,16 +1,35 @@
-//! Which protocol each side of the board speaks, fixed at build time.
+//! The bridge configuration, baked in at build time (issue 6).
 //!
-//! Set with environment variables when building, e.g.
-//! `XY_CONTROLLER=xy3 XY_HEAD=hans cargo build --release`; defaults: an XY2-100
-//! controller driving an XY3-100 head (the typical retrofit). A value the firmware
-//! cannot run stops the build (const evaluation), with the message below.
-//!
-//! The full bridge configuration file (axis map, scaling, supervision limits) replaces
-//! this once the bridge's configuration type is on main (issue 6, "configuration baked
-//! in at build time").
+//! `build.rs` parses `bridge.toml` (or the file named by `XY_BRIDGE_CONFIG`) into
+//! [`shared::bridge::Config`], validates it with `Config::validate()` and writes it
+//! postcard-encoded to `OUT_DIR/bridge_config.bin`; a bad file stops the build there.
+//! [`load`] decodes it at boot (no heap) and validates it again, so an image can never
+//! run a configuration the bridge engine would refuse. If that ever fails, `main` keeps
+//! the safe state (outputs idle, laser gate off) and logs why.
 
-/// Protocol on the controller side (inputs from the marking card). HANS-100 input
-/// needs the oversampling receivers of issue 4 and is not offered yet.
+use shared::bridge::{Config, ConfigError, Protocol};
+
+/// The postcard bytes `build.rs` wrote.
+static BAKED: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/bridge_config.bin"));
+
+/// Why the baked configuration cannot be used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum LoadError {
+    /// The bytes do not decode (an image built with a different `Config` layout).
+    Decode,
+    /// The configuration decodes but fails `Config::validate()`.
+    Invalid(ConfigError),
+}
+
+/// Decodes and re-validates the baked configuration.
+pub fn load() -> Result<Config, LoadError> {
+    let config: Config = postcard::from_bytes(BAKED).map_err(|_| LoadError::Decode)?;
+    config.validate().map_err(LoadError::Invalid)?;
+    Ok(config)
+}
+
+/// Protocol on the controller side (inputs from the marking card) that this board has
+/// input drivers for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub enum Controller {
     /// XY2-100: TIM1-clocked port sampling, STATUS level out.
@@ -39,42 +58,26 @@ pub struct Roles {
     pub head: Head,
 }
 
-/// The roles this image was built for.
-pub const ROLES: Roles = Roles {
-    controller: controller(option_env!("XY_CONTROLLER")),
-    head: head(option_env!("XY_HEAD")),
-};
-
-const fn eq(a: &str, b: &str) -> bool {
-    let (a, b) = (a.as_bytes(), b.as_bytes());
-    if a.len() != b.len() {
-        return false;
-    }
-    let mut i = 0;
-    while i < a.len() {
-        if a[i] != b[i] {
-            return false;
-        }
-        i += 1;
-    }
-    true
+/// A configured role this firmware has no driver for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
+pub enum Unsupported {
+    /// HANS-100 controller input needs five oversampled SPI channels (issue 4 drivers).
+    HansController,
 }
 
-const fn controller(v: Option<&str>) -> Controller {
-    match v {
-        None => Controller::Xy2,
-        Some(s) if eq(s, "xy2") => Controller::Xy2,
-        Some(s) if eq(s, "xy3") => Controller::Xy3,
-        Some(_) => panic!("XY_CONTROLLER must be xy2 or xy3 (hans input: issue 4)"),
-    }
-}
-
-const fn head(v: Option<&str>) -> Head {
-    match v {
-        None => Head::Xy3,
-        Some(s) if eq(s, "xy2") => Head::Xy2,
-        Some(s) if eq(s, "xy3") => Head::Xy3,
-        Some(s) if eq(s, "hans") => Head::Hans,
-        Some(_) => panic!("XY_HEAD must be xy2, xy3 or hans"),
+impl Roles {
+    /// The roles of a configuration, if the board can run them.
+    pub fn of(config: &Config) -> Result<Roles, Unsupported> {
+        let controller = match config.controller.protocol {
+            Protocol::Xy2 => Controller::Xy2,
+            Protocol::Xy3 => Controller::Xy3,
+            Protocol::Hans => return Err(Unsupported::HansController),
+        };
+        let head = match config.head.protocol {
+            Protocol::Xy2 => Head::Xy2,
+            Protocol::Xy3 => Head::Xy3,
+            Protocol::Hans => Head::Hans,
+        };
+        Ok(Roles { controller, head })
     }
 }

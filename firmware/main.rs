@@ -4,10 +4,11 @@
 //! Boot: [`board::init`] forces the laser gate off, records the reset cause, sets up
 //! power, clocks, SRAM and the I-cache. Then the thread-mode tasks start (supervisor
 //! with watchdog and laser gate, LEDs, statistics, status paths), and the
-//! high-priority `InterruptExecutor` takes the line tasks for the roles this image was
-//! built for ([`config::ROLES`]). Every output starts idle and the gate stays off
-//! until valid input frames arrive -- after a watchdog reset too, because this is the
-//! only boot path.
+//! high-priority `InterruptExecutor` takes the line tasks for the roles of the
+//! configuration baked in at build time ([`config::load`], from `bridge.toml`). Every
+//! output starts idle and the gate stays off until valid input frames arrive -- after
+//! a watchdog reset too, because this is the only boot path. A configuration that
+//! fails to load, or a role without a driver, leaves the bridge in that safe state.
 #![no_std]
 #![no_main]
 
@@ -23,7 +24,7 @@ use embassy_stm32::usart::{Uart, UartRx};
 use xy_bridge::{board, drivers};
 use {defmt_rtt as _, panic_probe as _};
 
-use config::{Controller, Head, ROLES};
+use config::{Controller, Head, Roles};
 use drivers::backchannel::{self, Backchannel};
 use tasks::{line, status};
 
@@ -46,12 +47,11 @@ unsafe fn UART8() {
 async fn main(spawner: Spawner) {
     let board = board::init();
     defmt::info!(
-        "xy-bridge firmware {} (silicon {}, core {} Hz), reset cause: {}, roles: {}",
+        "xy-bridge firmware {} (silicon {}, core {} Hz), reset cause: {}",
         env!("CARGO_PKG_VERSION"),
         board.silicon,
         board.core_hz,
         board.reset_cause,
-        ROLES
     );
     if let board::Silicon::Other(rev) = board.silicon {
         defmt::warn!(
@@ -70,27 +70,66 @@ async fn main(spawner: Spawner) {
     spawner.spawn(tasks::leds(board.led_green, board.led_yellow, board.led_red).unwrap());
     spawner.spawn(tasks::stats().unwrap());
 
+    // The configuration baked in by build.rs, validated again here. Without it (or
+    // for a role this board has no driver for) nothing else starts: head drivers off,
+    // laser gate off (the supervisor forces it off while no bridge runs).
+    let config = match config::load() {
+        Ok(c) => c,
+        Err(e) => {
+            defmt::error!(
+                "baked configuration unusable: {}; staying in the safe state",
+                e
+            );
+            return;
+        }
+    };
+    let roles = match Roles::of(&config) {
+        Ok(r) => r,
+        Err(e) => {
+            defmt::error!(
+                "no driver for the configured role: {}; staying in the safe state",
+                e
+            );
+            return;
+        }
+    };
+    defmt::info!("configuration: {}", roles);
+    if roles.controller == Controller::Xy3 {
+        defmt::warn!(
+            "XY3-100 controller: only the X line receiver runs (SPI3); the bridge is not \
+             fed, output stays idle and the laser gate off"
+        );
+    }
+    if roles.head == Head::Hans {
+        defmt::warn!(
+            "HANS-100 head: the SAI ring plays idle; the bridge is not wired to it yet, \
+             laser gate stays off"
+        );
+    }
+
     interrupt::UART8.set_priority(LINE_PRIORITY);
     let high = EXECUTOR_HIGH.start(interrupt::UART8);
-    high.spawn(line::bridge().unwrap());
 
     // Head-side drivers stay off until an output DMA plays its idle pattern.
     let head_enable = Output::new(r.head_enable, Level::Low, Speed::Low);
-    let hans_head = ROLES.head == Head::Hans;
+    let hans_head = roles.head == Head::Hans;
     let _head_mux = Output::new(r.head_mux, Level::from(hans_head), Speed::Low);
 
     // Controller side.
-    let back_config = backchannel::config(shared::xy3::BackRate::B115200.baud());
-    let back = match ROLES.controller {
+    let back_config = backchannel::config(config.controller.xy3.back_rate.baud());
+    let back = match roles.controller {
         Controller::Xy2 => {
             high.spawn(line::xy2_in(r.xy2_in).unwrap());
             let pin = Output::new(r.ctrl_status, Level::High, Speed::Low);
-            spawner.spawn(status::status_level_out(pin).unwrap());
+            let level = shared::xy2::StatusLevel {
+                polarity: config.controller.xy2.polarity,
+            };
+            spawner.spawn(status::status_level_out(pin, level).unwrap());
             let b = r.back;
             // The pair-6 driver is always on: it carries the STATUS level. Forgotten
             // on purpose: dropping an `Output` would turn the pin back into an input.
             core::mem::forget(Output::new(b.de, Level::High, Speed::Low));
-            (ROLES.head == Head::Xy3)
+            (roles.head == Head::Xy3)
                 .then(|| UartRx::new(b.uart, b.rx, b.rx_dma, tasks::Irqs, back_config).ok())
                 .flatten()
                 .map(|rx| Backchannel::receive_only(rx, tasks::back_ring()))
@@ -109,25 +148,30 @@ async fn main(spawner: Spawner) {
                 back_config,
             )
             .ok()
-            .map(|u| Backchannel::duplex(u, tasks::back_ring(), ROLES.head == Head::Xy3))
+            .map(|u| Backchannel::duplex(u, tasks::back_ring(), roles.head == Head::Xy3))
         }
     };
     match back {
         Some(back) => spawner.spawn(status::backchannel(back).unwrap()),
-        None if ROLES.head == Head::Xy3 || ROLES.controller == Controller::Xy3 => {
+        None if roles.head == Head::Xy3 || roles.controller == Controller::Xy3 => {
             defmt::error!("backchannel UART configuration rejected");
         }
         None => {}
     }
 
     // Head side.
-    match ROLES.head {
+    match roles.head {
         Head::Xy2 | Head::Xy3 => {
-            if ROLES.head == Head::Xy2 {
+            if roles.head == Head::Xy2 {
                 let pin = Input::new(r.head_status, Pull::None);
-                spawner.spawn(status::status_level_in(pin).unwrap());
+                let level = shared::xy2::StatusLevel {
+                    polarity: config.head.xy2.polarity,
+                };
+                spawner.spawn(status::status_level_in(pin, level).unwrap());
             }
-            high.spawn(line::wave_out(r.wave, ROLES.head, head_enable).unwrap());
+            let wave =
+                line::bridge_wave_out(r.wave, config, roles.head, roles.controller, head_enable);
+            high.spawn(wave.unwrap());
         }
         Head::Hans => {
             high.spawn(line::hans_out(r.hans_out, head_enable).unwrap());

@@ -13,7 +13,12 @@ use embassy_stm32::wdg::IndependentWatchdog;
 use embassy_stm32::{bind_interrupts, dma, peripherals, usart, Peri};
 use embassy_time::{Duration, Ticker};
 
-use crate::channels::{Health, Stats, HEAD_STATUS, HEALTH, STATS};
+use core::sync::atomic::Ordering;
+
+use crate::channels::{
+    set_laser_gate, Health, Stats, BRIDGE_BEAT, HEAD_STATUS, HEALTH, LASER_GATE, LINK_RUNNING,
+    STATS,
+};
 use crate::drivers::sync_marks::SyncEdgeHandler;
 
 bind_interrupts!(
@@ -44,33 +49,48 @@ const WATCHDOG_TIMEOUT_US: u32 = 250_000;
 /// How often the supervisor runs and feeds the watchdog.
 const SUPERVISOR_PERIOD: Duration = Duration::from_millis(50);
 
-/// Owns the watchdog and the laser gate. Runs in the thread-mode executor, so if that
-/// executor stalls (a task that never yields, a deadlock) the watchdog is no longer fed
-/// and resets the chip.
+/// Owns the watchdog and guards the laser gate. Runs in the thread-mode executor, so
+/// if that executor stalls (a task that never yields, a deadlock) the watchdog is no
+/// longer fed and resets the chip (the gate's pull-down then holds it off).
+///
+/// The gate pin goes to [`LASER_GATE`], where the bridge sets it from
+/// `Output.laser.gate` every output batch. If the bridge stops completing batches
+/// (its DMA stalled, or it never started: unsupported role, refused configuration),
+/// the supervisor forces the gate off within one period.
 #[embassy_executor::task]
 pub async fn supervisor(
     iwdg: Peri<'static, IWDG1>,
     mut laser_gate: Output<'static>,
     fault_at_boot: bool,
 ) {
+    laser_gate.set_low();
+    LASER_GATE.lock(|g| *g.borrow_mut() = Some(laser_gate));
     let mut watchdog = IndependentWatchdog::new(iwdg, WATCHDOG_TIMEOUT_US);
     watchdog.unleash();
     defmt::info!("watchdog running, timeout {} us", WATCHDOG_TIMEOUT_US);
 
-    let health = Health {
+    let mut health = Health {
         input_valid: false,
         fault: fault_at_boot,
     };
     HEALTH.sender().send(health);
 
     let mut ticker = Ticker::every(SUPERVISOR_PERIOD);
+    let mut last_beat = BRIDGE_BEAT.load(Ordering::Relaxed);
     loop {
-        // The laser gate stays off until the bridge reports valid input frames; the
-        // permit from the input decoders is wired in issue 6. Re-asserted every period
-        // so no other code path can leave it on.
-        laser_gate.set_low();
-        watchdog.pet();
         ticker.next().await;
+        let beat = BRIDGE_BEAT.load(Ordering::Relaxed);
+        let alive = beat != last_beat;
+        last_beat = beat;
+        if !alive {
+            set_laser_gate(false);
+        }
+        let input_valid = alive && LINK_RUNNING.load(Ordering::Relaxed);
+        if input_valid != health.input_valid {
+            health.input_valid = input_valid;
+            HEALTH.sender().send(health);
+        }
+        watchdog.pet();
     }
 }
 
@@ -105,11 +125,12 @@ pub async fn stats() {
         let alarms = head.try_get().map(|s| s.alarms.0).unwrap_or(0);
         let s = &STATS;
         defmt::info!(
-            "1 s: in {} halves ({} lost, {} SYNC marks), out {} halves ({} underruns), \
+            "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames, {} halves ({} underruns), \
              back {} packets ({} resyncs, {} errors), status changes {}, alarms {=u32:#x}",
             Stats::take(&s.input_halves),
             Stats::take(&s.input_overruns),
             Stats::take(&s.sync_marks),
+            Stats::take(&s.output_frames),
             Stats::take(&s.output_halves),
             Stats::take(&s.output_underruns),
             Stats::take(&s.back_packets),

@@ -10,7 +10,9 @@ use shared::xy2::{Health, StatusLevel};
 use shared::xy3::back::neutral::{apply, status_packet, StatusItem};
 use shared::xy3::back::{Event, Packet, Parser, Sender, SEND_BUF_LEN};
 
-use crate::channels::{Stats, BACK_RATE, HEAD_STATUS, HEALTH, STATS};
+use core::sync::atomic::Ordering;
+
+use crate::channels::{Stats, BACK_RATE, CTRL_STATUS_OK, HEAD_STATUS, HEALTH, STATS};
 use crate::drivers::backchannel::Backchannel;
 use crate::drivers::status_level::{StatusIn, StatusOut};
 
@@ -93,8 +95,8 @@ pub async fn backchannel(mut back: Backchannel<'static>) {
 
 /// XY2-100 STATUS level from the head: debounced, published as the head's alarms.
 #[embassy_executor::task]
-pub async fn status_level_in(pin: Input<'static>) {
-    let mut input = StatusIn::new(pin, StatusLevel::default());
+pub async fn status_level_in(pin: Input<'static>, level: StatusLevel) {
+    let mut input = StatusIn::new(pin, level);
     let mut status = HeadStatus::default();
     loop {
         let health = input.changed().await;
@@ -104,21 +106,18 @@ pub async fn status_level_in(pin: Input<'static>) {
     }
 }
 
-/// XY2-100 STATUS level to the controller: "ready" only while the head reports no
-/// alarm **and** valid input frames arrive; "fault" from reset on.
+/// XY2-100 STATUS level to the controller, in the configured polarity: what the
+/// bridge reports (`Bridge::xy2_status_line_high`: the head's alarms merged with the
+/// bridge's own, e.g. input lost), and "fault" from reset on and whenever the
+/// supervisor does not see valid input (a stalled bridge cannot report itself).
 #[embassy_executor::task]
-pub async fn status_level_out(pin: Output<'static>) {
-    let mut output = StatusOut::new(pin, StatusLevel::default());
-    let mut head = HEAD_STATUS.anon_receiver();
+pub async fn status_level_out(pin: Output<'static>, level: StatusLevel) {
+    let mut output = StatusOut::new(pin, level);
     let mut health = HEALTH.anon_receiver();
     let mut ticker = Ticker::every(Duration::from_millis(10));
-    let mut head_ok = false;
     loop {
-        if let Some(s) = head.try_changed() {
-            head_ok = Health::from_head_status(&s) == Health::Ok;
-        }
         let input_valid = health.try_get().is_some_and(|h| h.input_valid && !h.fault);
-        output.set(if head_ok && input_valid {
+        output.set(if input_valid && CTRL_STATUS_OK.load(Ordering::Relaxed) {
             Health::Ok
         } else {
             Health::Fault
