@@ -5,7 +5,7 @@
 //!
 //! # Pin map
 //! The full signal / DB25 / transceiver / pin / peripheral / DMA table is in
-//! `firmware/README-firmware.md`. One DB25 pair feeds every MCU pin one of its roles
+//! `README.md (section "Firmware")`. One DB25 pair feeds every MCU pin one of its roles
 //! needs (receiver outputs fan out to several inputs; outputs that several roles share
 //! go through a 2:1 mux or share one pin with different alternate functions), so the
 //! protocol per side is configuration, not a rebuild. Pins taken here:
@@ -53,7 +53,7 @@
 //! NUCLEO-H743ZI2 wiring) or from an external supply with the LDO bypassed. embassy-stm32
 //! writes PWR_CR3 = LDO for this family (and exposes no `SupplyConfig` here). PWR_CR3's
 //! supply bits are write-once per power-on: a mismatch with the board hangs at
-//! ACTVOSRDY. See README-firmware.md "Troubleshooting" for recovery.
+//! ACTVOSRDY. See README.md (section "Firmware") "Troubleshooting" for recovery.
 
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::pac;
@@ -134,7 +134,7 @@ pub struct Board {
     pub res: Resources,
 }
 
-/// Controller-side XY2-100 input (README-firmware.md allocation table).
+/// Controller-side XY2-100 input (README.md (section "Firmware") allocation table).
 pub struct Xy2InRes {
     /// TIM1, counting CLK on ETR.
     pub tim: Peri<'static, TIM1>,

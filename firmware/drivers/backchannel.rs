@@ -12,7 +12,7 @@
 //! * `set_baudrate` rewrites USART_BRR (§53.5.7) at run time (XY3-100 §6 lets the
 //!   controller change the backchannel rate by command).
 //!
-//! Board: one UART7 serves both sides (README-firmware.md): TX + DE drive the
+//! Board: one UART7 serves both sides (README.md (section "Firmware")): TX + DE drive the
 //! controller-side pair-6 RS-485 driver, RX listens to the head-side pair-6 receiver.
 //! Both directions therefore share one baud rate.
 //!

@@ -1,7 +1,7 @@
 //! Circular 12.5 MHz serial transmit of a `[u8; 125]` ring (HANS-100 out on the head
 //! side, HANS STATUS out on the controller side; `layouts.md` §5) on an SAI block.
 //!
-//! All six SPIs are receivers (README-firmware.md allocation), so the bit streams go
+//! All six SPIs are receivers (README.md (section "Firmware") allocation), so the bit streams go
 //! out of SAI blocks in free-protocol mode: 8-bit slots filling 8-bit frames make the
 //! SD line one continuous MSB-first stream (FS and SCK are not routed to a pin).
 //! The ring is never re-queued: the DMA stream replays it forever, and the bridge

@@ -27,7 +27,7 @@
 //! 7. CR1.CEN = 1.
 //!
 //! The ticks are exact only when the timer clock divides evenly (see
-//! README-firmware.md "Clock tree"); [`WaveOut::tick_hz`] reports the real rate.
+//! README.md (section "Firmware") "Clock tree"); [`WaveOut::tick_hz`] reports the real rate.
 
 use embassy_stm32::dma::{
     Channel, InterruptHandler, Priority, ReadableRingBuffer, TransferOptions, WritableRingBuffer,

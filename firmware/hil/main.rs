@@ -1,6 +1,6 @@
 //! Hardware-in-the-loop self-tests (issue 6): every head-side output is looped back to
 //! a controller-side input with jumper wires on one NUCLEO-H743ZI2, and the real
-//! drivers send and receive through them. Wiring and how to run: README-firmware.md,
+//! drivers send and receive through them. Wiring and how to run: README.md (section "Firmware"),
 //! "Hardware-in-the-loop self-tests". `embedded-test` runs each test after a reset, so
 //! every test starts from a fresh `board::init`.
 #![no_std]

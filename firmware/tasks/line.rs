@@ -5,7 +5,7 @@
 //! other for longer than one half's work.
 //!
 //! Wired end to end: XY2-100 controller -> [`bridge_wave_out`] -> XY2-100 or XY3-100
-//! head. Other inputs are received but not bridged (README-firmware.md, "What is
+//! head. Other inputs are received but not bridged (README.md (section "Firmware"), "What is
 //! left"): the output then stays idle and the laser gate off.
 //!
 //! Hot state (receiver, `Bridge`, encoder) lives in the task's future, i.e. in the
@@ -108,7 +108,7 @@ pub async fn xy3_in(r: Xy3InRes) {
 }
 
 /// HANS-100 STATUS input (head side): TIM3 CH2 makes the 40 MHz oversampling clock
-/// (240 MHz / 6; README-firmware.md clock tree) that clocks SPI6 through a wire from
+/// (240 MHz / 6; README.md (section "Firmware") clock tree) that clocks SPI6 through a wire from
 /// PC7 to PB3; SPI6 receives 16-bit words into a BDMA ring in SRAM4.
 #[embassy_executor::task]
 pub async fn hans_status_in(r: HansStatusInRes) {

@@ -22,7 +22,7 @@ use crate::channels::{
 use crate::drivers::sync_marks::SyncEdgeHandler;
 
 bind_interrupts!(
-    /// Every interrupt a protocol driver uses (README-firmware.md allocation table).
+    /// Every interrupt a protocol driver uses (README.md (section "Firmware") allocation table).
     pub struct Irqs {
         DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
