@@ -21,6 +21,7 @@
 //! status_level_in / backchannel RX --HEAD_STATUS--> bridge_wave_out, backchannel TX
 //! CTRL_STATUS_OK --> status_level_out;  BACK_RATE --> backchannel
 //! supervisor --HEALTH--> leds;  everyone --STATS--> stats
+//! stats --SNAPSHOT_WANTED--> [H] bridge_wave_out --BRIDGE_SNAPSHOT--> stats
 //! ```
 
 use core::cell::RefCell;
@@ -33,8 +34,9 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use embassy_sync::watch::Watch;
+use shared::bridge::{Counters, LinkState};
 use shared::hans::frame::Frame as HansFrame;
-use shared::model::HeadStatus;
+use shared::model::{Alarms, HeadStatus};
 use shared::xy3::BackRate;
 
 /// Overall state shown on the LEDs.
@@ -106,6 +108,32 @@ pub static LINK_RUNNING: AtomicBool = AtomicBool::new(false);
 /// XY2-100 STATUS towards the controller means "OK" (from the bridge's
 /// `xy2_status_line_high`, i.e. head alarms merged with the bridge's own).
 pub static CTRL_STATUS_OK: AtomicBool = AtomicBool::new(false);
+
+/// The bridge engine's own view for the statistics line: its counters (cumulative,
+/// saturating) and its link state and alarms, copied by the bridge task.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BridgeSnapshot {
+    /// `Bridge::counters` (frames, faults per line, repeats, commands not carried).
+    pub counters: Counters,
+    /// The link state after the last output slot.
+    pub state: LinkState,
+    /// The bridge's own alarms (`INPUT_LOST`, `STATUS_LOST`).
+    pub alarms: Alarms,
+    /// What the controller is told: the head's alarms merged with the bridge's own.
+    pub reported: Alarms,
+    /// The laser gate as the bridge drove it after this batch.
+    pub gate: bool,
+}
+
+/// Set by the statistics task to ask for a [`BridgeSnapshot`]. The bridge task looks
+/// at it once per output batch and copies its state only when asked, so the
+/// high-priority loop pays the copy (a few hundred bytes inside a critical section)
+/// once a second, not every batch, and never waits for the reader.
+pub static SNAPSHOT_WANTED: AtomicBool = AtomicBool::new(false);
+
+/// The bridge's answer to [`SNAPSHOT_WANTED`] ("latest wins"; `signal` only takes
+/// the critical section for the copy, so the bridge task never blocks on it).
+pub static BRIDGE_SNAPSHOT: Signal<CriticalSectionRawMutex, BridgeSnapshot> = Signal::new();
 
 /// Counters for the once-a-second summary.
 pub struct Stats {

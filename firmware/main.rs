@@ -68,7 +68,7 @@ async fn main(spawner: Spawner) {
     // Each task is spawned once from a pool of one, so the tokens cannot be exhausted.
     spawner.spawn(tasks::supervisor(board.iwdg, board.laser_gate, fault).unwrap());
     spawner.spawn(tasks::leds(board.led_green, board.led_yellow, board.led_red).unwrap());
-    spawner.spawn(tasks::stats().unwrap());
+    spawner.spawn(tasks::stats::stats().unwrap());
 
     // The configuration baked in by build.rs, validated again here. Without it (or
     // for a role this board has no driver for) nothing else starts: head drivers off,

@@ -33,8 +33,9 @@ use shared::xy3::FrameSize;
 use shared::{xy2, xy3};
 
 use crate::channels::{
-    set_laser_gate, RawInput, Stats, BRIDGE_BEAT, CTRL_STATUS_OK, HANS_FRAME, HANS_HALF,
-    HEAD_STATUS, LINK_RUNNING, RAW_INPUT, STATS, XY2_HALF, XY3_HALF, XY3_MARKS,
+    set_laser_gate, BridgeSnapshot, RawInput, Stats, BRIDGE_BEAT, BRIDGE_SNAPSHOT, CTRL_STATUS_OK,
+    HANS_FRAME, HANS_HALF, HEAD_STATUS, LINK_RUNNING, RAW_INPUT, SNAPSHOT_WANTED, STATS, XY2_HALF,
+    XY3_HALF, XY3_MARKS,
 };
 use crate::config::{Controller, Head};
 use crate::drivers::serial_tx::SerialTx;
@@ -519,6 +520,15 @@ pub async fn bridge_wave_out(
         // forwarded position.
         gate_history = (gate_history << 1 | u8::from(gate)) & GATE_ON_BATCHES;
         set_laser_gate(gate_history == GATE_ON_BATCHES);
+        if SNAPSHOT_WANTED.swap(false, Ordering::Relaxed) {
+            BRIDGE_SNAPSHOT.signal(BridgeSnapshot {
+                counters: *bridge.counters(),
+                state: bridge.state(),
+                alarms: bridge.alarms(),
+                reported: bridge.reported_alarms(),
+                gate: gate_history == GATE_ON_BATCHES,
+            });
+        }
         let ok = ctrl_level.health(bridge.xy2_status_line_high()) == xy2::Health::Ok;
         CTRL_STATUS_OK.store(ok, Ordering::Relaxed);
         BRIDGE_BEAT.fetch_add(1, Ordering::Relaxed);

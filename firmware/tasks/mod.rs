@@ -1,10 +1,11 @@
-//! Tasks. Thread mode (this file and [`status`]): the supervisor (watchdog, laser
-//! gate, health), the status LEDs, the once-a-second statistics and the status
-//! paths. High priority ([`line`], run by the `InterruptExecutor` in `main.rs`): the
+//! Tasks. Thread mode (this file, [`stats`] and [`status`]): the supervisor
+//! (watchdog, laser gate, health), the status LEDs, the once-a-second statistics and
+//! the status paths. High priority ([`line`], run by the `InterruptExecutor` in `main.rs`): the
 //! per-DMA-half receive -> bridge -> transmit loop. Thread-mode tasks may be slow
 //! without affecting the line timing.
 
 pub mod line;
+pub mod stats;
 pub mod status;
 
 use embassy_stm32::gpio::Output;
@@ -15,10 +16,7 @@ use embassy_time::{Duration, Ticker};
 
 use core::sync::atomic::Ordering;
 
-use crate::channels::{
-    set_laser_gate, Health, Stats, BRIDGE_BEAT, HEAD_STATUS, HEALTH, LASER_GATE, LINK_RUNNING,
-    STATS,
-};
+use crate::channels::{set_laser_gate, Health, BRIDGE_BEAT, HEALTH, LASER_GATE, LINK_RUNNING};
 use crate::drivers::sync_marks::SyncEdgeHandler;
 
 bind_interrupts!(
@@ -111,34 +109,6 @@ pub async fn leds(
             red.set_level(h.fault.into());
         }
         ticker.next().await;
-    }
-}
-
-/// Once a second: a defmt summary of what the line tasks counted, and the head's
-/// alarms.
-#[embassy_executor::task]
-pub async fn stats() {
-    let mut head = HEAD_STATUS.anon_receiver();
-    let mut ticker = Ticker::every(Duration::from_secs(1));
-    loop {
-        ticker.next().await;
-        let alarms = head.try_get().map(|s| s.alarms.0).unwrap_or(0);
-        let s = &STATS;
-        defmt::info!(
-            "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames, {} halves ({} underruns), \
-             back {} packets ({} resyncs, {} errors), status changes {}, alarms {=u32:#x}",
-            Stats::take(&s.input_halves),
-            Stats::take(&s.input_overruns),
-            Stats::take(&s.sync_marks),
-            Stats::take(&s.output_frames),
-            Stats::take(&s.output_halves),
-            Stats::take(&s.output_underruns),
-            Stats::take(&s.back_packets),
-            Stats::take(&s.back_resyncs),
-            Stats::take(&s.back_errors),
-            Stats::take(&s.status_changes),
-            alarms,
-        );
     }
 }
 
