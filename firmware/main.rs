@@ -26,7 +26,8 @@ use {defmt_rtt as _, panic_probe as _};
 
 use config::{Controller, Head, Roles};
 use drivers::backchannel::{self, Backchannel};
-use tasks::{line, status};
+use shared::bridge::StatusForm;
+use tasks::{bridge, line, status};
 
 /// Runs the line tasks at interrupt priority. UART8 is unused on this board, so its
 /// vector serves as the executor's software interrupt.
@@ -162,15 +163,28 @@ async fn main(spawner: Spawner) {
     // Head side.
     match roles.head {
         Head::Xy2 | Head::Xy3 => {
+            let mut status_pin = None;
             if roles.head == Head::Xy2 {
                 let pin = Input::new(r.head_status, Pull::None);
-                let level = shared::xy2::StatusLevel {
-                    polarity: config.head.xy2.polarity,
-                };
-                spawner.spawn(status::status_level_in(pin, level).unwrap());
+                match config.head.xy2.status {
+                    StatusForm::Level => {
+                        let level = shared::xy2::StatusLevel {
+                            polarity: config.head.xy2.polarity,
+                        };
+                        spawner.spawn(status::status_level_in(pin, level).unwrap());
+                    }
+                    // Sampled by TIM8 CC1 in the bridge task, which keeps the pin.
+                    StatusForm::Word => status_pin = Some(pin),
+                }
             }
-            let wave =
-                line::bridge_wave_out(r.wave, config, roles.head, roles.controller, head_enable);
+            let wave = bridge::bridge_wave_out(
+                r.wave,
+                config,
+                roles.head,
+                roles.controller,
+                head_enable,
+                status_pin,
+            );
             high.spawn(wave.unwrap());
         }
         Head::Hans => {

@@ -28,7 +28,9 @@ mod tests {
     use embassy_stm32::{bind_interrupts, dma, pac, peripherals, usart, Peri};
     use embassy_time::{with_timeout, Duration};
     use shared::hans::frame::{write_slot, Frame, RING_BYTES};
-    use shared::xy2::{Health, StatusLevel};
+    use shared::model::Alarms;
+    use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
+    use shared::xy2::{Health, LinkConfig, Mode, Parity, StatusError, StatusLevel, StatusWord};
     use shared::xy3::back::{Event, Packet, Parser, Sender, SEND_BUF_LEN};
     use xy_bridge::board::{self, Board};
     use xy_bridge::dma_ring;
@@ -58,6 +60,7 @@ mod tests {
     const P1: u32 = 0;
     const P2: u32 = 1;
     const P3: u32 = 2;
+    const P4: u32 = 3;
     /// Every output low.
     const ALL_LOW: u32 = (1 << (P1 + 16)) | (1 << (P2 + 16)) | (1 << (P3 + 16));
     /// A timeout long enough for a few DMA halves.
@@ -95,7 +98,9 @@ mod tests {
         let mut out =
             WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
         let status_ring = dma_ring!(".sram2", u16, 8 * BITS);
-        out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring);
+        out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring)
+            .unwrap();
+        out.start();
 
         let mut prng = Prng(0x1234_5678);
         let mut x_bits = [false; BITS];
@@ -119,16 +124,89 @@ mod tests {
             assert_eq!(s >> 1 & 1 == 1, x_bits[i], "X at bit {}", i);
         }
 
-        // Status samples: two per bit, both with the bit's X level; find the start.
+        // Status samples, one per bit (the CLK-high tick), aligned to the first word
+        // written: kept sample i must carry bit i's X level, from the first one on.
+        embassy_time::Timer::after_micros(20).await;
         let mut samples = [0u16; 8 * BITS];
         let n = out.read_status(&mut samples).unwrap();
-        let x_of = |s: u16| s >> 1 & 1 == 1;
-        let found = (0..n.saturating_sub(2 * BITS)).any(|o| {
-            (0..BITS).all(|i| {
-                x_of(samples[o + 2 * i]) == x_bits[i] && x_of(samples[o + 2 * i + 1]) == x_bits[i]
-            })
+        assert!(n >= BITS, "{} status samples", n);
+        for (i, s) in samples[..BITS].iter().enumerate() {
+            assert_eq!(s >> 1 & 1 == 1, x_bits[i], "status sample {}", i);
+        }
+    }
+
+    /// XY2-100 STATUS word, head side. Jumper: PD3 -> PG9 (the head's STATUS input).
+    /// PD3 plays a head that shifts a status frame out on our clock, changing its
+    /// line on every CLK falling edge (PD0, no jumper needed); the TIM8 CC1 sampler's
+    /// aligned samples must give back every frame through `shared`'s
+    /// `StatusWordReceiver` at the firmware's geometry (20 samples per 40-tick frame,
+    /// offset 1), and the one frame sent with a flipped parity bit must be refused.
+    #[test]
+    async fn xy2_status_word_loopback(board: Board) {
+        const TPF: usize = 40;
+        const FRAMES: usize = 25;
+        const BATCHES: usize = 4;
+        const BAD: usize = 37;
+        let r = board.res;
+        let w = r.wave;
+        let _clk = Output::new(w.pins.p1, Level::Low, Speed::VeryHigh);
+        let _status = Output::new(w.pins.p4, Level::Low, Speed::VeryHigh);
+        let _status_in = Input::new(r.head_status, Pull::None);
+        let ring = dma_ring!(".sram2", u32, 2 * FRAMES * TPF);
+        let mut out =
+            WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
+        let status_ring = dma_ring!(".sram2", u16, 4 * FRAMES * TPF);
+        out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring)
+            .unwrap();
+        out.start();
+
+        let link = LinkConfig {
+            mode: Mode::Standard16,
+            parity: Parity::WholeFrame,
+        };
+        let geometry = StatusWordConfig {
+            pin: 9,
+            samples_per_period: (TPF / 2) as u16,
+            offset: 1,
+            link,
+        };
+        let mut rx = StatusWordReceiver::new(geometry).unwrap();
+        let word = |k: usize| StatusWord::from_alarms(Alarms((k as u32).wrapping_mul(7) & 0xF));
+        let frame = |k: usize| word(k).to_frame(&link) ^ u32::from(k == BAD);
+        let mut got: heapless::Vec<Result<StatusWord, StatusError>, 160> = heapless::Vec::new();
+        let mut batch = [0u32; FRAMES * TPF];
+        let mut samples = [0u16; 4 * FRAMES * TPF];
+        // One batch more than the frames: its idle slots (no clock, STATUS held) let
+        // the last frame's last bit be sampled.
+        for b in 0..=BATCHES {
+            for (f, slot) in batch.chunks_exact_mut(TPF).enumerate() {
+                let k = b * FRAMES + f;
+                let bits = (k < BATCHES * FRAMES).then(|| frame(k));
+                for (i, pair) in slot.chunks_exact_mut(2).enumerate() {
+                    pair[0] = level(P1, bits.is_some());
+                    let status = bits.map_or(0, |v| level(P4, v >> (19 - i) & 1 == 1));
+                    pair[1] = level(P1, false) | status;
+                }
+            }
+            out.write_half(&batch).await.unwrap();
+            let n = out.read_status(&mut samples).unwrap();
+            rx.feed(&samples[..n], &mut |r| {
+                let _ = got.push(r);
+            });
+        }
+        embassy_time::Timer::after_micros(300).await;
+        let n = out.read_status(&mut samples).unwrap();
+        rx.feed(&samples[..n], &mut |r| {
+            let _ = got.push(r);
         });
-        assert!(found, "X pattern not in {} status samples", n);
+        assert!(got.len() >= BATCHES * FRAMES, "{} words", got.len());
+        for (k, r) in got[..BATCHES * FRAMES].iter().enumerate() {
+            if k == BAD {
+                assert!(r.is_err(), "frame {} with a flipped bit passed", k);
+            } else {
+                assert_eq!(*r, Ok(word(k)), "frame {}", k);
+            }
+        }
     }
 
     /// XY3-100 out -> XY3-100 in. Jumpers: PD0 (SYNC) -> PA15 and PA4, PD1 (CLK) ->
@@ -152,6 +230,7 @@ mod tests {
         let idle = level(P1, true) | level(P2, false) | level(P3, false);
         let ring = dma_ring!(".sram2", u32, 4 * FRAMES * SLOTS);
         let mut out = WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, idle, 4_800_000).unwrap();
+        out.start();
 
         let word = |k: usize| ((k as u32).wrapping_mul(0x0102_0305) ^ 0x00A5_5AC3) & 0xFF_FFFF;
         let mut half = [0u32; 2 * FRAMES * SLOTS];

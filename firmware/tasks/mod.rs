@@ -1,9 +1,12 @@
 //! Tasks. Thread mode (this file, [`stats`] and [`status`]): the supervisor
 //! (watchdog, laser gate, health), the status LEDs, the once-a-second statistics and
-//! the status paths. High priority ([`line`], run by the `InterruptExecutor` in `main.rs`): the
-//! per-DMA-half receive -> bridge -> transmit loop. Thread-mode tasks may be slow
+//! the status paths. High priority ([`line`], [`bridge`], run by the `InterruptExecutor` in
+//! `main.rs`): the per-DMA-half receive -> bridge -> transmit loop. Thread-mode tasks may be slow
 //! without affecting the line timing.
 
+pub mod bridge;
+mod encode;
+mod head_word;
 pub mod line;
 pub mod stats;
 pub mod status;
