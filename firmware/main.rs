@@ -26,7 +26,7 @@ use {defmt_rtt as _, panic_probe as _};
 
 use config::{Controller, Head, Roles};
 use drivers::backchannel::{self, Backchannel};
-use shared::bridge::StatusForm;
+use shared::bridge::{StatusForm, ZSource};
 use tasks::{bridge, line, status};
 
 /// Runs the line tasks at interrupt priority. UART8 is unused on this board, so its
@@ -95,12 +95,6 @@ async fn main(spawner: Spawner) {
         }
     };
     defmt::info!("configuration: {}", roles);
-    if roles.controller == Controller::Xy3 {
-        defmt::warn!(
-            "XY3-100 controller: only the X line receiver runs (SPI3); the bridge is not \
-             fed, output stays idle and the laser gate off"
-        );
-    }
     if roles.head == Head::Hans {
         defmt::warn!(
             "HANS-100 head: the SAI ring plays idle; the bridge is not wired to it yet, \
@@ -136,7 +130,9 @@ async fn main(spawner: Spawner) {
                 .map(|rx| Backchannel::receive_only(rx, tasks::back_ring()))
         }
         Controller::Xy3 => {
-            high.spawn(line::xy3_in(r.xy3_in).unwrap());
+            // Z is received only when the bridge takes Z from the input.
+            let with_z = config.z.source == ZSource::Input;
+            high.spawn(line::xy3_in(r.xy3_in, with_z).unwrap());
             let b = r.back;
             Uart::new_with_de(
                 b.uart,

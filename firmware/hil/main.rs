@@ -31,7 +31,9 @@ mod tests {
     use shared::model::Alarms;
     use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
     use shared::xy2::{Health, LinkConfig, Mode, Parity, StatusError, StatusLevel, StatusWord};
+    use shared::xy3;
     use shared::xy3::back::{Event, Packet, Parser, Sender, SEND_BUF_LEN};
+    use shared::xy3::{Frame as Frame3, FrameSize};
     use xy_bridge::board::{self, Board};
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::backchannel::{self, Backchannel};
@@ -46,6 +48,7 @@ mod tests {
 
     bind_interrupts!(struct Irqs {
         DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+        DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
@@ -225,8 +228,9 @@ mod tests {
         let x = r.xy3_in;
         let mut marks = SyncMarks::new(x.sync, x.exti, Irqs, (2 * BYTES) as u16);
         let rx_ring = dma_ring!(".sram1", u8, 2 * BYTES);
+        let l = x.x;
         let mut rx =
-            SpiSlaveRx::new(x.spi, x.sck, x.mosi, Some(x.nss), x.dma, Irqs, rx_ring).unwrap();
+            SpiSlaveRx::new(l.spi, l.sck, l.mosi, Some(l.nss), l.dma, Irqs, rx_ring).unwrap();
         let idle = level(P1, true) | level(P2, false) | level(P3, false);
         let ring = dma_ring!(".sram2", u32, 4 * FRAMES * SLOTS);
         let mut out = WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, idle, 4_800_000).unwrap();
@@ -269,6 +273,138 @@ mod tests {
         }
     }
 
+    /// XY3-100 out -> XY3-100 in, end to end through `shared`'s transmitter and
+    /// receiver, as the firmware runs them. Jumpers: PD0 (SYNC) -> PA15, PE11 and PA4;
+    /// PD1 (CLK) -> PC10 and PE12; PD2 (X) -> PC12; PD3 (Y) -> PE14. 120 periods of
+    /// 24-bit X and Y position frames at 100 kHz (`xy3::tx`, 50 ticks at 5 MHz) are
+    /// received by SPI3 (X) and SPI4 (Y) with the EXTI frame-end marks and decoded by
+    /// `xy3::rx::Receiver`, fed in 60-byte chunks with the marks due so far: every
+    /// period must give back both frames in order, except period 45, whose Y bit 10
+    /// is flipped on the wire: Y must fail its check there (X still decodes), and the
+    /// period must not count as good.
+    #[test]
+    async fn xy3_receiver_loopback(board: Board) {
+        const FRAMES: usize = 120;
+        const TPF: usize = 50;
+        const BYTES: usize = 3 * FRAMES;
+        const CHUNK: usize = 60;
+        const BAD: usize = 45;
+        let r = board.res;
+        let w = r.wave;
+        let _sync = Output::new(w.pins.p1, Level::High, Speed::VeryHigh);
+        let _clk = Output::new(w.pins.p2, Level::Low, Speed::VeryHigh);
+        let _x = Output::new(w.pins.p3, Level::Low, Speed::VeryHigh);
+        let _y = Output::new(w.pins.p4, Level::Low, Speed::VeryHigh);
+        let tx = xy3::tx::Transmitter::new(&xy3::tx::TxConfig {
+            pins: xy3::tx::OutPinMap {
+                clk: P2 as u8,
+                sync: P1 as u8,
+                data: [Some(P3 as u8), Some(P4 as u8), None, None, None],
+            },
+            size: FrameSize::Bits24,
+            idle_ticks: xy3::tx::MIN_IDLE_TICKS,
+        })
+        .unwrap();
+        assert_eq!(tx.ticks_per_frame(), TPF);
+
+        let i = r.xy3_in;
+        let (lx, ly) = (i.x, i.y);
+        // Both rings hold the whole transfer: nothing is read until it is all in.
+        let x_ring = dma_ring!(".sram1", u8, 512);
+        let y_ring = dma_ring!(".sram1", u8, 512);
+        let mut rx_x =
+            SpiSlaveRx::new(lx.spi, lx.sck, lx.mosi, Some(lx.nss), lx.dma, Irqs, x_ring).unwrap();
+        let mut rx_y =
+            SpiSlaveRx::new(ly.spi, ly.sck, ly.mosi, Some(ly.nss), ly.dma, Irqs, y_ring).unwrap();
+        let mut marks = SyncMarks::new(i.sync, i.exti, Irqs, 512);
+
+        // The output ring holds every frame plus idle, so no write can come late.
+        let mut idle = [0u32; TPF];
+        tx.idle(&mut idle).unwrap();
+        // One lap of idle plays before the first written word: 7000 words fit.
+        let ring = dma_ring!(".sram1", u32, (FRAMES + 40) * TPF);
+        let mut out =
+            WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, idle[0], 5_000_000).unwrap();
+        out.start();
+
+        let x_of =
+            |k: usize| Frame3::Position24(((k as u32).wrapping_mul(0x1357) ^ 0x4_0000) & 0xF_FFFF);
+        let y_of =
+            |k: usize| Frame3::Position24(((k as u32).wrapping_mul(0x2468) ^ 0x9ABC) & 0xF_FFFF);
+        let mut batch = [0u32; 20 * TPF];
+        // Six batches of 20 frames, then one idle batch.
+        for b in 0..=FRAMES / 20 {
+            for (f, slot) in batch.chunks_exact_mut(TPF).enumerate() {
+                let k = b * 20 + f;
+                if k >= FRAMES {
+                    tx.idle(slot).unwrap();
+                    continue;
+                }
+                tx.encode(&[Some(x_of(k)), Some(y_of(k)), None, None, None], slot)
+                    .unwrap();
+                if k == BAD {
+                    // Word 2b + 1 sets bit b's level; swap Y's set and reset there.
+                    let word = &mut slot[2 * 10 + 1];
+                    let ybits = (1 << P4) | (1 << (P4 + 16));
+                    assert!(*word & ybits != 0 && *word & ybits != ybits);
+                    *word ^= ybits;
+                }
+            }
+            out.write_half(&batch).await.unwrap();
+        }
+        let (mut bx, mut by) = ([0u8; BYTES], [0u8; BYTES]);
+        with_timeout(WAIT, rx_x.read_exact(&mut bx))
+            .await
+            .unwrap()
+            .unwrap();
+        with_timeout(WAIT, rx_y.read_exact(&mut by))
+            .await
+            .unwrap()
+            .unwrap();
+        embassy_time::Timer::after_micros(50).await;
+        let mut ends = [0u32; FRAMES + 1];
+        let n = marks.drain(&mut ends);
+        assert_eq!(n, FRAMES, "marks");
+
+        let mut receiver = xy3::rx::Receiver::new(xy3::rx::Lines::XY);
+        let mut periods: heapless::Vec<xy3::rx::Period, { FRAMES + 8 }> = heapless::Vec::new();
+        let (mut next_end, mut pushed) = (0, 0);
+        for (cx, cy) in bx.chunks(CHUNK).zip(by.chunks(CHUNK)) {
+            receiver.push_bytes(&[cx, cy]).unwrap();
+            pushed += cx.len();
+            // The ends whose bytes are in (at most 20 wait at a time).
+            let due = ends[next_end..n]
+                .iter()
+                .take_while(|&&e| e as usize <= pushed)
+                .count();
+            receiver.push_ends(&ends[next_end..next_end + due]);
+            next_end += due;
+            while let Some(p) = receiver.poll() {
+                periods.push(p).unwrap();
+            }
+        }
+        receiver.push_ends(&ends[next_end..n]);
+        while let Some(p) = receiver.poll() {
+            periods.push(p).unwrap();
+        }
+        assert_eq!(periods.len(), FRAMES, "periods");
+        for (k, p) in periods.iter().enumerate() {
+            assert_eq!(p.end as usize, 3 * (k + 1), "end of period {}", k);
+            assert_eq!(p.lines[0], Some(Ok(x_of(k))), "X in period {}", k);
+            if k == BAD {
+                assert!(
+                    matches!(p.lines[1], Some(Err(xy3::rx::RxError::Check(_)))),
+                    "Y in period {}: {:?}",
+                    k,
+                    p.lines[1]
+                );
+                assert!(!p.all_ok());
+            } else {
+                assert_eq!(p.lines[1], Some(Ok(y_of(k))), "Y in period {}", k);
+            }
+        }
+    }
+
     /// HANS-100 out -> an SPI slave clocked by the SAI's own bit clock. Jumpers: PE6
     /// (SAI1_SD_A) -> PC12, PE5 (SAI1_SCK_A, test only) -> PC10. The 1000-bit ring of
     /// 8 frames must come back bit for bit (from whatever bit the SPI started on).
@@ -290,7 +426,8 @@ mod tests {
         const LEN: usize = 2 * RING_BYTES;
         let rx_ring = dma_ring!(".sram1", u8, 2 * LEN);
         let no_nss: Option<Peri<'static, PA15>> = None;
-        let mut rx = SpiSlaveRx::new(x.spi, x.sck, x.mosi, no_nss, x.dma, Irqs, rx_ring).unwrap();
+        let l = x.x;
+        let mut rx = SpiSlaveRx::new(l.spi, l.sck, l.mosi, no_nss, l.dma, Irqs, rx_ring).unwrap();
         let ring = dma_ring!(".sram2", u8, RING_BYTES);
         ring.copy_from_slice(&expected);
         let h = r.hans_out;

@@ -15,16 +15,19 @@ use embassy_stm32::gpio::{Input, Level, Output, Speed};
 use embassy_stm32::pac;
 use embassy_time::Instant;
 use shared::bridge::{Bridge, Config, LinkState, StatusForm, Timing, ZSource};
-use shared::model::LineEvent;
-use shared::xy2;
+use shared::model::{FaultKind, Line, LineEvent};
+use shared::xy3::back::SEND_BUF_LEN;
+use shared::xy3::BackRate;
+use shared::{xy2, xy3};
 
 use super::encode::{idle_word, Encoder};
 use super::head_word::{SentPeriods, StatusWordIn};
 use super::Irqs;
 use crate::board::WaveRes;
 use crate::channels::{
-    set_laser_gate, BridgeSnapshot, Stats, BRIDGE_BEAT, BRIDGE_SNAPSHOT, CTRL_STATUS_OK,
-    HEAD_STATUS, LINK_RUNNING, RAW_INPUT, SNAPSHOT_WANTED, STATS,
+    set_laser_gate, BridgeSnapshot, Stats, Xy3Raw, BACK_RATE, BACK_TX, BRIDGE_BEAT,
+    BRIDGE_SNAPSHOT, CTRL_STATUS_OK, HEAD_STATUS, LINK_RUNNING, RAW_INPUT, SNAPSHOT_WANTED, STATS,
+    XY3_HALF, XY3_INPUT, XY3_LINES,
 };
 use crate::config::{Controller, Head};
 use crate::drivers::wave_out::WaveOut;
@@ -36,9 +39,9 @@ const WAVE_BATCH: usize = 1000;
 /// must all have the gate on (see the gate in [`bridge_wave_out`]).
 const GATE_ON_BATCHES: u8 = 0b111;
 
-/// Input events buffered per batch: up to three XY2 halves of 25 frame periods, each
-/// a frame or up to three channel faults, plus framing events.
-const MAX_EVENTS: usize = 128;
+/// Input events buffered per batch: up to three XY2 halves of 25 frame periods (or
+/// four XY3 halves of up to 21), each a frame or up to three line faults.
+const MAX_EVENTS: usize = 192;
 
 /// XY2-100 input pins on port G (board wiring: PG0 SYNC, PG1 X, PG2 Y, PG3 Z). Z is
 /// received only with `z.source = "input"`: a frame period counts only if every
@@ -53,14 +56,75 @@ fn xy2_in_pins(config: &Config) -> xy2::rx::PinMap {
     }
 }
 
-/// The controller-side receiver the bridge runs on [`RawInput`] halves.
+/// The controller-side receiver the bridge runs on the input halves.
+#[expect(
+    clippy::large_enum_variant,
+    reason = "one instance, inside the task's future; no heap to box into"
+)]
 enum Decoder {
-    /// XY2-100 port samples.
+    /// XY2-100 port samples ([`RAW_INPUT`]).
     Xy2(xy2::rx::Receiver),
-    /// No receiver this board can run for the configured input (see `main`): halves
-    /// are counted, the bridge never sees a frame, so the output stays idle and the
-    /// laser gate off.
-    None,
+    /// XY3-100 SPI bytes and frame-end marks ([`XY3_INPUT`]).
+    Xy3(Xy3Decoder),
+}
+
+/// The XY3-100 receiver and where its byte count stands against the input task's.
+struct Xy3Decoder {
+    rx: xy3::rx::Receiver,
+    lines: xy3::rx::Lines,
+    /// The input session the receiver follows (`None` before the first half).
+    session: Option<u32>,
+    /// `first_byte` the next half must have to continue the byte stream.
+    next_byte: u32,
+}
+
+impl Xy3Decoder {
+    fn new(config: &Config) -> Self {
+        // X and Y always; Z only when the bridge takes Z from the input (an
+        // unconnected Z line would read dead and fail every period).
+        let lines = if config.z.source == ZSource::Input {
+            xy3::rx::Lines::XYZ
+        } else {
+            xy3::rx::Lines::XY
+        };
+        Xy3Decoder {
+            rx: xy3::rx::Receiver::new(lines),
+            lines,
+            session: None,
+            next_byte: 0,
+        }
+    }
+
+    /// Feeds one half and hands the events of every completed period to `emit`.
+    fn feed(&mut self, raw: &Xy3Raw, emit: &mut impl FnMut(LineEvent)) {
+        if self.session != Some(raw.session) || raw.first_byte != self.next_byte {
+            // A new input session (all lines restarted) or a lost half: the byte
+            // stream is not continuous, so start a receiver at this half's count
+            // (pending frame ends of the old stream are meaningless now).
+            if self.session.is_some() {
+                emit(LineEvent::Fault {
+                    line: Line::Framing,
+                    kind: FaultKind::Dropped,
+                });
+            }
+            self.rx = xy3::rx::Receiver::with_origin(self.lines, raw.first_byte);
+            self.session = Some(raw.session);
+        }
+        self.next_byte = raw.first_byte.wrapping_add(XY3_HALF as u32);
+        let [x, y, z] = &raw.bytes;
+        let all: [&[u8]; XY3_LINES] = [x, y, z];
+        let lines = all.get(..self.lines.count()).unwrap_or_default();
+        if let Err(e) = self.rx.push_bytes(lines) {
+            // Not reachable (one equal-length slice per configured line), but never
+            // silent: the bytes are not taken.
+            defmt::error!("xy3 receiver refused a half: {}", e);
+            return;
+        }
+        self.rx.push_ends(&raw.ends);
+        while let Some(period) = self.rx.poll() {
+            period.for_each_event(&mut *emit);
+        }
+    }
 }
 
 /// The bridge: controller-side receiver -> [`Bridge`] -> head-side transmitter, one
@@ -68,12 +132,15 @@ enum Decoder {
 /// waveform ring (XY2-100 / XY3-100 heads). For an XY2 head with `status = "word"`
 /// the STATUS word samples of TIM8 CC1 are decoded too ([`StatusWordIn`]).
 ///
-/// Per batch: drain the raw input halves into the receiver and feed its
+/// Per batch: drain the input halves (XY2 port samples from [`RAW_INPUT`], or XY3
+/// bytes + frame ends from [`XY3_INPUT`]) into the receiver and feed its
 /// [`LineEvent`]s to `Bridge::on_line_event` (time: `embassy_time::Instant` in ns);
 /// take the head status the status tasks published; then `Bridge::tick` once per
 /// output frame at its slot time, encode, and write the batch into the ring. The
 /// laser gate follows `Output.laser.gate`, the XY2 STATUS level to the controller
-/// the bridge's `xy2_status_line_high`.
+/// the bridge's `xy2_status_line_high`; towards an XY3-100 controller the
+/// backchannel bytes come from `Bridge::xy3_back_poll` ([`BACK_TX`]) and rate
+/// changes go to [`BACK_RATE`].
 ///
 /// Safe start-up: until the bridge has been `Running` once (its first valid input
 /// frames), every slot is idle -- not the configured park position -- so the head sees
@@ -125,7 +192,7 @@ pub async fn bridge_wave_out(
                 }
             }
         }
-        Controller::Xy3 => Decoder::None,
+        Controller::Xy3 => Decoder::Xy3(Xy3Decoder::new(&config)),
     };
     let speed = Speed::VeryHigh;
     let _pins = [
@@ -205,6 +272,10 @@ pub async fn bridge_wave_out(
     // Output frame periods written so far (period 0 = the first slot written).
     let mut period = 0u64;
     let mut started = false;
+    // XY3-100 controller: the bridge's backchannel packets go out through BACK_TX.
+    let back_ctrl = controller == Controller::Xy3;
+    let mut back_buf = [0u8; SEND_BUF_LEN];
+    let mut rate_due: Option<BackRate> = None;
     let mut slot_ns = 0u64;
     let mut gate_history = 0u8;
     let mut events: heapless::Vec<LineEvent, MAX_EVENTS> = heapless::Vec::new();
@@ -213,15 +284,21 @@ pub async fn bridge_wave_out(
         // Input: every raw half that arrived since the last batch, decoded into
         // neutral events (in time order).
         events.clear();
-        while let Ok(raw) = RAW_INPUT.try_receive() {
-            if let Decoder::Xy2(rx) = &mut decoder {
-                rx.feed(&raw, &mut |ev| {
-                    ev.line_events(&mut |le| {
-                        if events.push(le).is_err() {
-                            Stats::bump(&STATS.input_overruns);
-                        }
-                    })
-                });
+        let mut push = |le| {
+            if events.push(le).is_err() {
+                Stats::bump(&STATS.input_overruns);
+            }
+        };
+        match &mut decoder {
+            Decoder::Xy2(rx) => {
+                while let Ok(raw) = RAW_INPUT.try_receive() {
+                    rx.feed(&raw, &mut |ev| ev.line_events(&mut push));
+                }
+            }
+            Decoder::Xy3(rx) => {
+                while let Ok(raw) = XY3_INPUT.try_receive() {
+                    rx.feed(&raw, &mut push);
+                }
             }
         }
         // Head status from the status tasks (XY2 level, XY3 backchannel).
@@ -263,6 +340,11 @@ pub async fn bridge_wave_out(
             sent.set(period, encoded);
             period += 1;
             gate &= o.laser.gate;
+            // One UART serves both sides (channels::BACK_RATE); the controller's
+            // command and the head's (the same command, forwarded) agree.
+            if let Some(rate) = o.controller_back_rate.or(o.head_back_rate) {
+                rate_due = Some(rate);
+            }
             LINK_RUNNING.store(o.state == LinkState::Running, Ordering::Relaxed);
         }
         // The batch just computed plays two batches from now (the ring holds the
@@ -280,6 +362,23 @@ pub async fn bridge_wave_out(
                 reported: bridge.reported_alarms(),
                 gate: gate_history == GATE_ON_BATCHES,
             });
+        }
+        if let Some(rate) = rate_due {
+            // Bytes already queued were made for the old rate: switch once they are
+            // out (the backchannel task finishes the write it has taken first).
+            if !back_ctrl || BACK_TX.is_empty() {
+                BACK_RATE.signal(rate);
+                rate_due = None;
+            }
+        }
+        if back_ctrl && rate_due.is_none() && BACK_TX.free_capacity() >= SEND_BUF_LEN {
+            match bridge.xy3_back_poll(slot_ns, &mut back_buf) {
+                // Fits: the bridge is the only writer and checked the space.
+                Ok(n) => {
+                    let _ = BACK_TX.try_write(back_buf.get(..n).unwrap_or_default());
+                }
+                Err(_) => Stats::bump(&STATS.back_errors),
+            }
         }
         let ok = ctrl_level.health(bridge.xy2_status_line_high()) == xy2::Health::Ok;
         CTRL_STATUS_OK.store(ok, Ordering::Relaxed);

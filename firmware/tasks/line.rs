@@ -15,14 +15,19 @@ use embassy_stm32::{pac, Peri};
 use shared::hans::frame::{write_slot, RING_BYTES};
 
 use super::Irqs;
-use crate::board::{HansOutRes, HansStatusInRes, Xy2InRes, Xy3InRes};
+use crate::board::{HansOutRes, HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes};
 use crate::channels::{
-    RawInput, Stats, HANS_FRAME, HANS_HALF, RAW_INPUT, STATS, XY2_HALF, XY3_HALF, XY3_MARKS,
+    RawInput, Stats, Xy3Raw, HANS_FRAME, HANS_HALF, RAW_INPUT, STATS, XY2_HALF, XY3_HALF,
+    XY3_INPUT, XY3_LINES, XY3_MARKS,
 };
 use crate::drivers::serial_tx::SerialTx;
-use crate::drivers::spi_slave_rx::SpiSlaveRx;
+use crate::drivers::spi_slave_rx::{RxError, SpiSlaveRx};
 use crate::drivers::sync_marks::SyncMarks;
 use crate::drivers::xy2_sampler::Xy2Sampler;
+use embassy_stm32::peripherals::{
+    DMA1_CH0, DMA1_CH1, DMA1_CH2, EXTI4, PA15, PA4, PC10, PC12, PE11, PE12, PE14, PF6, PF7, PF9,
+    SPI3, SPI4, SPI5,
+};
 use xy_bridge::dma_ring;
 
 /// Hands an XY2 half to the bridge without waiting: a full queue means the bridge is
@@ -52,39 +57,127 @@ pub async fn xy2_in(r: Xy2InRes) {
     }
 }
 
-/// XY3-100 input (controller side): SPI3 receives X; EXTI4 marks every SYNC rising
-/// edge. Only counted, not bridged: a frame period with X alone would make the bridge
-/// hold Y at its last value, so the XY3 receiver (`shared::xy3::rx`) is fed once Y
-/// (SPI4) and Z (SPI5) run too (README "What is left").
+/// XY3-100 input (controller side): SPI3 (X), SPI4 (Y) and, with `with_z`, SPI5 (Z)
+/// receive their lines as SPI slaves clocked by the controller's CLK (shared SCK bus)
+/// and selected by SYNC; EXTI4 marks every SYNC rising edge with the X ring position.
+/// Each DMA half of every line, with the marks drained alongside, goes to the bridge
+/// ([`XY3_INPUT`]), which runs `shared::xy3::rx::Receiver` on it.
+///
+/// The receiver needs byte `i` of every line to come from the same clock edges, so
+/// all SPIs must start counting together: each session starts them with the SCK-bus
+/// buffer off (OE# high, the bus pulled low, no edges), then turns the buffer on. An
+/// overrun on any line ends the session (its lines are no longer in step) and a new
+/// one starts the same way; the bridge restarts its receiver on the new session.
 #[embassy_executor::task]
-pub async fn xy3_in(r: Xy3InRes) {
-    // OE# low: the pair-2 receiver (XY3 CLK) drives the shared SCK bus.
-    let _sck_bus = Output::new(r.sck_buffer_oe, Level::Low, Speed::Low);
-    const LEN: usize = 2 * XY3_HALF;
-    let ring = dma_ring!(".sram1", u8, LEN);
-    let mut marks = SyncMarks::new(r.sync, r.exti, Irqs, LEN as u16);
-    let mut rx = match SpiSlaveRx::new(r.spi, r.sck, r.mosi, Some(r.nss), r.dma, Irqs, ring) {
-        Ok(rx) => rx,
-        Err(e) => {
-            defmt::error!("xy3 in: {}", e);
-            return;
+pub async fn xy3_in(r: Xy3InRes, with_z: bool) {
+    let mut r = r;
+    let mut sck_bus = Output::new(r.sck_buffer_oe.reborrow(), Level::High, Speed::Low);
+    let x_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
+    let y_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
+    let z_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
+    let mut session = 0u32;
+    loop {
+        // Gate the clock before the SPIs of the last session go away.
+        sck_bus.set_high();
+        let rings = [&mut x_ring[..], &mut y_ring[..], &mut z_ring[..]];
+        let lines = Xy3Lines {
+            x: &mut r.x,
+            y: &mut r.y,
+            z: with_z.then_some(&mut r.z),
+            sync: &mut r.sync,
+            exti: &mut r.exti,
+        };
+        if let Err(e) = xy3_session(lines, rings, session, &mut sck_bus).await {
+            defmt::warn!("xy3 in: {}; restarting all lines together", e);
+            Stats::bump(&STATS.input_overruns);
         }
+        session = session.wrapping_add(1);
+    }
+}
+
+/// The parts of [`Xy3InRes`] a session borrows (the SCK-bus enable stays with the
+/// task).
+struct Xy3Lines<'a> {
+    x: &'a mut SpiLineRes<SPI3, PC10, PC12, PA15, DMA1_CH0>,
+    y: &'a mut SpiLineRes<SPI4, PE12, PE14, PE11, DMA1_CH1>,
+    z: Option<&'a mut SpiLineRes<SPI5, PF7, PF9, PF6, DMA1_CH2>>,
+    sync: &'a mut Peri<'static, PA4>,
+    exti: &'a mut Peri<'static, EXTI4>,
+}
+
+/// One reception session of [`xy3_in`]: returns when a line fails (never otherwise).
+async fn xy3_session(
+    r: Xy3Lines<'_>,
+    rings: [&mut [u8]; 3],
+    session: u32,
+    sck_bus: &mut Output<'_>,
+) -> Result<(), RxError> {
+    let [x_ring, y_ring, z_ring] = rings;
+    let ring_len = x_ring.len() as u16;
+    let l = r.x;
+    let mut x = SpiSlaveRx::new(
+        l.spi.reborrow(),
+        l.sck.reborrow(),
+        l.mosi.reborrow(),
+        Some(l.nss.reborrow()),
+        l.dma.reborrow(),
+        Irqs,
+        x_ring,
+    )?;
+    let l = r.y;
+    let mut y = SpiSlaveRx::new(
+        l.spi.reborrow(),
+        l.sck.reborrow(),
+        l.mosi.reborrow(),
+        Some(l.nss.reborrow()),
+        l.dma.reborrow(),
+        Irqs,
+        y_ring,
+    )?;
+    let mut z = match r.z {
+        Some(l) => Some(SpiSlaveRx::new(
+            l.spi.reborrow(),
+            l.sck.reborrow(),
+            l.mosi.reborrow(),
+            Some(l.nss.reborrow()),
+            l.dma.reborrow(),
+            Irqs,
+            z_ring,
+        )?),
+        None => None,
     };
-    let mut bytes = [0u8; XY3_HALF];
+    let mut marks = SyncMarks::new(r.sync.reborrow(), r.exti.reborrow(), Irqs, ring_len);
+    // Every line is ready: let the clock in.
+    sck_bus.set_low();
+    let mut raw = Xy3Raw {
+        session,
+        first_byte: 0,
+        bytes: [[0; XY3_HALF]; XY3_LINES],
+        ends: heapless::Vec::new(),
+    };
     let mut ends = [0u32; XY3_MARKS];
     loop {
-        let result = rx.read_exact(&mut bytes).await;
-        let n = marks.drain(&mut ends);
-        match result {
-            Ok(()) => {
-                Stats::bump(&STATS.input_halves);
-                STATS.sync_marks.fetch_add(n as u32, Ordering::Relaxed);
-            }
-            Err(e) => {
-                defmt::warn!("xy3 in: {} ({} marks dropped)", e, marks.dropped());
-                Stats::bump(&STATS.input_overruns);
-            }
+        let [bx, by, bz] = &mut raw.bytes;
+        x.read_exact(bx).await?;
+        y.read_exact(by).await?;
+        if let Some(z) = z.as_mut() {
+            z.read_exact(bz).await?;
         }
+        let n = marks.drain(&mut ends);
+        raw.ends.clear();
+        // `ends` has the Vec's capacity: everything drained fits.
+        let _ = raw
+            .ends
+            .extend_from_slice(ends.get(..n).unwrap_or_default());
+        STATS.sync_marks.fetch_add(n as u32, Ordering::Relaxed);
+        // Never wait for the bridge: a full queue loses this half (the bridge sees
+        // the gap in `first_byte` and restarts its receiver there).
+        if XY3_INPUT.try_send(raw.clone()).is_ok() {
+            Stats::bump(&STATS.input_halves);
+        } else {
+            Stats::bump(&STATS.input_overruns);
+        }
+        raw.first_byte = raw.first_byte.wrapping_add(XY3_HALF as u32);
     }
 }
 

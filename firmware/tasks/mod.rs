@@ -26,6 +26,8 @@ bind_interrupts!(
     /// Every interrupt a protocol driver uses (README.md (section "Firmware") allocation table).
     pub struct Irqs {
         DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+        DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
+        DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
