@@ -5,6 +5,7 @@
 //! without affecting the line timing.
 
 pub mod bridge;
+mod bridge_core;
 mod encode;
 mod head_word;
 pub mod line;
