@@ -134,6 +134,11 @@ pub struct Board {
     pub res: Resources,
 }
 
+/// The HANS-100 oversampling clock fs made by TIM3 (240 MHz / 6 on revision V,
+/// 200 MHz / 5 on revision Y: exact on both; README clock tree), 3.2 times the
+/// 12.5 MHz bit rate.
+pub const HANS_FS_HZ: u32 = 40_000_000;
+
 /// Controller-side XY2-100 input (README.md (section "Firmware") allocation table).
 pub struct Xy2InRes {
     /// TIM1, counting CLK on ETR.

@@ -17,7 +17,8 @@
 //! [H] xy2_in --RAW_INPUT--> [H] bridge_wave_out <--XY3_INPUT-- [H] xy3_in
 //!     (receiver -> Bridge -> transmitter -> waveform ring; LASER_GATE, BRIDGE_BEAT,
 //!      LINK_RUNNING, CTRL_STATUS_OK)
-//! [H] hans_out <--HANS_FRAME-- (not fed by the bridge yet: README "What is left")
+//! [H] xy2_in / xy3_in --> [H] bridge_hans_out (same inputs; HANS-100 head)
+//! [H] hans_status_in --HANS_STATUS_RAW--> hans_status --HEAD_STATUS--> bridge
 //! status_level_in / backchannel RX --HEAD_STATUS--> bridge_wave_out, stats
 //! bridge_wave_out --BACK_TX (bytes), BACK_RATE--> backchannel (UART7)
 //! CTRL_STATUS_OK --> status_level_out
@@ -37,7 +38,6 @@ use embassy_sync::pipe::Pipe;
 use embassy_sync::signal::Signal;
 use embassy_sync::watch::Watch;
 use shared::bridge::{Counters, LinkState};
-use shared::hans::frame::Frame as HansFrame;
 use shared::model::{Alarms, HeadStatus};
 use shared::xy3::BackRate;
 
@@ -100,8 +100,14 @@ pub static XY3_INPUT: Channel<CriticalSectionRawMutex, Xy3Raw, 4> = Channel::new
 /// bridge waits for output space; a fourth would only hide a slow bridge.
 pub static RAW_INPUT: Channel<CriticalSectionRawMutex, RawInput, 3> = Channel::new();
 
-/// The newest HANS-100 frame for the head (written two slots ahead by `hans_out`).
-pub static HANS_FRAME: Signal<CriticalSectionRawMutex, HansFrame> = Signal::new();
+/// One half of the HANS-100 STATUS input (head side, SPI6 at `fs`), for the
+/// thread-mode decoder.
+pub type HansStatusRaw = [u16; HANS_HALF];
+
+/// HANS STATUS halves to `status::hans_status` (thread mode: its decoder is too slow
+/// for the high-priority executor, see README "What is left"). Only every
+/// `line::HANS_STATUS_EVERY`-th half is sent; a full queue drops the half.
+pub static HANS_STATUS_RAW: Channel<CriticalSectionRawMutex, HansStatusRaw, 1> = Channel::new();
 
 /// Backchannel rate to switch UART7 to (XY3-100 §6): raised by the bridge from
 /// `Output.controller_back_rate` (once the bytes for the old rate have left
@@ -194,6 +200,10 @@ pub struct Stats {
     pub back_errors: AtomicU32,
     /// Head STATUS level changes.
     pub status_changes: AtomicU32,
+    /// Head STATUS frames that failed their check (HANS-100 STATUS).
+    pub status_faults: AtomicU32,
+    /// Frames the bridge gave that the head-side encoder refused (not sent).
+    pub output_refused: AtomicU32,
 }
 
 impl Stats {
@@ -220,4 +230,6 @@ pub static STATS: Stats = Stats {
     back_resyncs: AtomicU32::new(0),
     back_errors: AtomicU32::new(0),
     status_changes: AtomicU32::new(0),
+    status_faults: AtomicU32::new(0),
+    output_refused: AtomicU32::new(0),
 };

@@ -27,7 +27,7 @@ use {defmt_rtt as _, panic_probe as _};
 use config::{Controller, Head, Roles};
 use drivers::backchannel::{self, Backchannel};
 use shared::bridge::{StatusForm, ZSource};
-use tasks::{bridge, line, status};
+use tasks::{bridge, bridge_hans, line, status};
 
 /// Runs the line tasks at interrupt priority. UART8 is unused on this board, so its
 /// vector serves as the executor's software interrupt.
@@ -95,12 +95,6 @@ async fn main(spawner: Spawner) {
         }
     };
     defmt::info!("configuration: {}", roles);
-    if roles.head == Head::Hans {
-        defmt::warn!(
-            "HANS-100 head: the SAI ring plays idle; the bridge is not wired to it yet, \
-             laser gate stays off"
-        );
-    }
 
     interrupt::UART8.set_priority(LINE_PRIORITY);
     let high = EXECUTOR_HIGH.start(interrupt::UART8);
@@ -184,8 +178,11 @@ async fn main(spawner: Spawner) {
             high.spawn(wave.unwrap());
         }
         Head::Hans => {
-            high.spawn(line::hans_out(r.hans_out, head_enable).unwrap());
+            let hans =
+                bridge_hans::bridge_hans_out(r.hans_out, config, roles.controller, head_enable);
+            high.spawn(hans.unwrap());
             high.spawn(line::hans_status_in(r.hans_status_in).unwrap());
+            spawner.spawn(status::hans_status().unwrap());
         }
     }
 }

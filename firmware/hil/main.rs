@@ -24,16 +24,24 @@ impl Prng {
 mod tests {
     use embassy_stm32::gpio::{AfType, Flex, Input, Level, Output, OutputType, Pull, Speed};
     use embassy_stm32::peripherals::PA15;
+    use embassy_stm32::peripherals::PG8;
+    use embassy_stm32::time::Hertz;
+    use embassy_stm32::timer::low_level::CountingMode;
+    use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
     use embassy_stm32::usart::Uart;
     use embassy_stm32::{bind_interrupts, dma, pac, peripherals, usart, Peri};
     use embassy_time::{with_timeout, Duration};
     use shared::hans::frame::{write_slot, Frame, RING_BYTES};
+    use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
+    use shared::hans::tx::Transmitter;
     use shared::model::Alarms;
+    use shared::model::FaultKind;
     use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
     use shared::xy2::{Health, LinkConfig, Mode, Parity, StatusError, StatusLevel, StatusWord};
     use shared::xy3;
     use shared::xy3::back::{Event, Packet, Parser, Sender, SEND_BUF_LEN};
     use shared::xy3::{Frame as Frame3, FrameSize};
+    use xy_bridge::board::HANS_FS_HZ;
     use xy_bridge::board::{self, Board};
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::backchannel::{self, Backchannel};
@@ -55,6 +63,7 @@ mod tests {
         DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
         DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
         DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
+        BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
         EXTI4 => SyncEdgeHandler;
         UART7 => usart::InterruptHandler<peripherals::UART7>;
     });
@@ -445,6 +454,147 @@ mod tests {
             .any(|r| (0..8 * LEN).all(|j| bit(&got, j) == bit(&expected, (r + j) % ring_bits)));
         assert!(found, "ring pattern not received");
         assert!(tx.sending_slot() < 8);
+    }
+
+    /// Captures `words.len()` SPI6 words (40 MHz fs from TIM3 CH2) and decodes them
+    /// with `shared`'s HANS-100 receiver as `status::hans_status` does (channel 1);
+    /// returns the frames and the number of frames that failed a check.
+    fn hans_decode(words: &[u16], frames: &mut heapless::Vec<Frame, 48>) -> usize {
+        let mut rx = HansRx::new(HANS_FS_HZ, HansMode::Normal { channel: 1 }).unwrap();
+        let mut bad = 0;
+        rx.push(&[words], &mut |ev| match ev {
+            RxEvent::Frame(f) => frames.push(f).unwrap(),
+            RxEvent::Fault {
+                kind: FaultKind::CheckFailed,
+                ..
+            } => bad += 1,
+            RxEvent::Fault { .. } => {}
+        });
+        bad
+    }
+
+    /// Starts TIM3 CH2 at the firmware's HANS fs on PC7; runs while the result lives.
+    fn hans_fs(
+        tim: Peri<'static, peripherals::TIM3>,
+        pin: Peri<'static, peripherals::PC7>,
+    ) -> SimplePwm<'static, peripherals::TIM3> {
+        let mut pwm = SimplePwm::new(
+            tim,
+            None,
+            Some(PwmPin::new(pin, OutputType::PushPull)),
+            None,
+            None,
+            Hertz(HANS_FS_HZ),
+            CountingMode::EdgeAlignedUp,
+        );
+        {
+            let mut fs = pwm.ch2();
+            fs.set_duty_cycle_fraction(1, 2);
+            fs.enable();
+        }
+        pwm
+    }
+
+    /// HANS-100 out -> HANS STATUS in, the head-side status path end to end. Jumpers:
+    /// PE6 (SAI1_SD_A) -> PG14 (SPI6 MOSI), PC7 (TIM3 CH2, fs) -> PB3 (SPI6 SCK). The
+    /// SAI replays 8 frames, slot 5 with one bit flipped; SPI6 oversamples 1024 words
+    /// (16 384 samples, 41 frame periods) into the BDMA ring in SRAM4 and the HANS-100
+    /// receiver must give back at least 28 frames, each the ring's next frame in
+    /// order, never slot 5, whose copies must fail their check instead.
+    #[test]
+    async fn hans_status_in_loopback(board: Board) {
+        const BAD: usize = 5;
+        let r = board.res;
+        let mut ring_bytes = [0u8; RING_BYTES];
+        let frame_of = |slot: u32| Frame::new(slot * 0x1_2345, 0xF_FFFF - slot, 0x3_C3C3 ^ slot);
+        for slot in 0..8u32 {
+            write_slot(&mut ring_bytes, slot as usize, &frame_of(slot).unwrap()).unwrap();
+        }
+        // One bit in the middle of slot 5 (inside a complement pair).
+        let flip = BAD * 125 + 60;
+        ring_bytes[flip / 8] ^= 0x80 >> (flip % 8);
+
+        let s = r.hans_status_in;
+        let _fs = hans_fs(s.fs_tim, s.fs_pin);
+        let rx_ring = dma_ring!(".sram4", u16, 2048);
+        let no_nss: Option<Peri<'static, PG8>> = None;
+        let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();
+        let ring = dma_ring!(".sram2", u8, RING_BYTES);
+        ring.copy_from_slice(&ring_bytes);
+        let h = r.hans_out;
+        let mut channel = None;
+        let _tx = SerialTx::new(h.sai, h.sd, h.dma, Irqs, &mut channel, ring);
+
+        let mut words = [0u16; 1024];
+        with_timeout(WAIT, rx.read_exact(&mut words))
+            .await
+            .unwrap()
+            .unwrap();
+        let mut frames = heapless::Vec::new();
+        let bad = hans_decode(&words, &mut frames);
+        assert!(frames.len() >= 28, "{} frames", frames.len());
+        assert!(bad >= 2, "{} check failures", bad);
+        let slot_of = |f: &Frame| (0..8u32).find(|&s| frame_of(s).unwrap() == *f);
+        let mut last = slot_of(&frames[0]).expect("frame not from the ring");
+        for f in &frames[1..] {
+            let slot = slot_of(f).expect("frame not from the ring");
+            assert_ne!(slot as usize, BAD, "corrupted frame delivered");
+            let step = if (last as usize + 1) % 8 == BAD { 2 } else { 1 };
+            assert_eq!(slot, (last + step) % 8, "after slot {}", last);
+            last = slot;
+        }
+    }
+
+    /// The HANS-100 head output as the bridge loop drives it: the ring starts as zeros
+    /// (no frame on the line), then `shared::hans::tx::Transmitter::update` puts frame
+    /// k = 1, 2, ... two slots ahead of the DMA about every slot period, for longer
+    /// than SPI6 captures (2048 words, 819 us). Jumpers as `hans_status_in_loopback`.
+    /// Every decoded frame must be one of those written, in non-decreasing k (the
+    /// line never replays an older one), with at least 10 distinct k.
+    #[test]
+    async fn hans_paced_update_loopback(board: Board) {
+        const MAX_K: u32 = 1000;
+        let r = board.res;
+        let frame_of = |k: u32| Frame::new((k * 0x1111) & 0xF_FFFF, 0x8_0000 + k, k).unwrap();
+        let s = r.hans_status_in;
+        let _fs = hans_fs(s.fs_tim, s.fs_pin);
+        let rx_ring = dma_ring!(".sram4", u16, 4096);
+        let no_nss: Option<Peri<'static, PG8>> = None;
+        let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();
+        let ring = dma_ring!(".sram2", u8, RING_BYTES);
+        let h = r.hans_out;
+        let mut channel = None;
+        let mut out = SerialTx::new(h.sai, h.sd, h.dma, Irqs, &mut channel, ring);
+
+        let mut words = [0u16; 2048];
+        let updates = async {
+            let mut tx = Transmitter::new();
+            let end = embassy_time::Instant::now() + Duration::from_micros(1500);
+            let mut k = 1;
+            while embassy_time::Instant::now() < end && k < MAX_K {
+                let remaining = out.remaining();
+                out.update(|buf| tx.update(buf, remaining, &frame_of(k)))
+                    .unwrap();
+                k += 1;
+                embassy_time::Timer::after_micros(10).await;
+            }
+        };
+        let capture = with_timeout(WAIT, rx.read_exact(&mut words));
+        let (_, captured) = embassy_futures::join::join(updates, capture).await;
+        captured.unwrap().unwrap();
+
+        let mut frames = heapless::Vec::new();
+        hans_decode(&words, &mut frames);
+        let k_of = |f: &Frame| (1..MAX_K).find(|&k| frame_of(k) == *f);
+        let mut last = 0;
+        let mut distinct = 0;
+        for f in &frames {
+            let k = k_of(f).expect("frame not written by the test");
+            assert!(k >= last, "frame {} after {}", k, last);
+            distinct += usize::from(k != last);
+            last = k;
+        }
+        assert!(distinct >= 10, "{} distinct frames", distinct);
     }
 
     /// Backchannel: UART7 TX -> RX. Jumper: PE8 -> PA8. Packets sent with `shared`'s

@@ -1,6 +1,6 @@
 //! High-priority line tasks, run by the `InterruptExecutor` (`main.rs`): one task per
-//! receiver moves each DMA half-buffer towards the bridge loop ([`super::bridge`]),
-//! one task per transmitter keeps its DMA ring fed. Each loop iteration is one DMA
+//! receiver moves each DMA half-buffer towards the bridge loops ([`super::bridge`],
+//! [`super::bridge_hans`]) or the HANS STATUS decoder. Each loop iteration is one DMA
 //! half, so these tasks preempt everything in thread mode but never block each other
 //! for longer than one half's work.
 
@@ -12,15 +12,13 @@ use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::CountingMode;
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use embassy_stm32::{pac, Peri};
-use shared::hans::frame::{write_slot, RING_BYTES};
 
 use super::Irqs;
-use crate::board::{HansOutRes, HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes};
+use crate::board::{HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes, HANS_FS_HZ};
 use crate::channels::{
-    RawInput, Stats, Xy3Raw, HANS_FRAME, HANS_HALF, RAW_INPUT, STATS, XY2_HALF, XY3_HALF,
+    RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_RAW, RAW_INPUT, STATS, XY2_HALF, XY3_HALF,
     XY3_INPUT, XY3_LINES, XY3_MARKS,
 };
-use crate::drivers::serial_tx::SerialTx;
 use crate::drivers::spi_slave_rx::{RxError, SpiSlaveRx};
 use crate::drivers::sync_marks::SyncMarks;
 use crate::drivers::xy2_sampler::Xy2Sampler;
@@ -181,9 +179,18 @@ async fn xy3_session(
     }
 }
 
-/// HANS-100 STATUS input (head side): TIM3 CH2 makes the 40 MHz oversampling clock
-/// (240 MHz / 6; README.md (section "Firmware") clock tree) that clocks SPI6 through a wire from
-/// PC7 to PB3; SPI6 receives 16-bit words into a BDMA ring in SRAM4.
+/// Every how many SPI6 halves one goes to the STATUS decoder. `shared`'s HANS-100
+/// receiver costs about 4 400 instructions per frame and channel (`shared::hans::rx`
+/// module docs), about as long as the 205 us of signal in a half take to arrive, so the
+/// thread-mode decoder takes one contiguous half in eight: the head's status is
+/// refreshed every 1.6 ms from about 18 frames (a fresh receiver locks within the
+/// first two), at roughly an eighth of the CPU.
+pub const HANS_STATUS_EVERY: u32 = 8;
+
+/// HANS-100 STATUS input (head side): TIM3 CH2 makes the oversampling clock fs that
+/// clocks SPI6 through a wire from PC7 to PB3; SPI6 receives 16-bit words into a
+/// BDMA ring in SRAM4. Every [`HANS_STATUS_EVERY`]-th half goes to the thread-mode
+/// decoder (`status::hans_status`, via [`HANS_STATUS_RAW`]).
 #[embassy_executor::task]
 pub async fn hans_status_in(r: HansStatusInRes) {
     let fs_pin = PwmPin::new(r.fs_pin, OutputType::PushPull);
@@ -193,7 +200,7 @@ pub async fn hans_status_in(r: HansStatusInRes) {
         Some(fs_pin),
         None,
         None,
-        Hertz(40_000_000),
+        Hertz(HANS_FS_HZ),
         CountingMode::EdgeAlignedUp,
     );
     let mut fs = pwm.ch2();
@@ -210,43 +217,21 @@ pub async fn hans_status_in(r: HansStatusInRes) {
         }
     };
     let mut half = [0u16; HANS_HALF];
+    let mut n = 0u32;
     loop {
         match rx.read_exact(&mut half).await {
-            // Counted only: the HANS-100 STATUS receiver joins with the HANS head path
-            // (README "What is left").
-            Ok(()) => Stats::bump(&STATS.input_halves),
+            Ok(()) => {
+                Stats::bump(&STATS.input_halves);
+                n = n.wrapping_add(1);
+                // A full queue means the decoder is still on the last one: skip.
+                if n.is_multiple_of(HANS_STATUS_EVERY) && HANS_STATUS_RAW.try_send(half).is_err() {
+                    Stats::bump(&STATS.input_overruns);
+                }
+            }
             Err(e) => {
                 defmt::warn!("hans status in: {}", e);
                 Stats::bump(&STATS.input_overruns);
             }
-        }
-    }
-}
-
-/// HANS-100 output (head side): SAI1 block A replays the 125-byte ring; the newest
-/// frame from the bridge goes two slots ahead of the DMA.
-#[embassy_executor::task]
-pub async fn hans_out(r: HansOutRes, head_enable: Output<'static>) {
-    let mut head_enable = head_enable;
-    let ring = dma_ring!(".sram2", u8, RING_BYTES);
-    let mut slot = None;
-    // The ring is all zeros: an idle line until the bridge has a frame.
-    let mut tx = SerialTx::new(r.sai, r.sd, r.dma, Irqs, &mut slot, ring);
-    head_enable.set_high();
-    let mut last = tx.sending_slot();
-    loop {
-        let frame = HANS_FRAME.wait().await;
-        let next = tx.next_free_slot();
-        if tx.update(|buf| write_slot(buf, next, &frame)).is_err() {
-            defmt::error!("hans out: slot {} out of range", next);
-        }
-        let now = tx.sending_slot();
-        if now < last {
-            Stats::bump(&STATS.output_halves);
-        }
-        last = now;
-        if tx.take_underrun() {
-            Stats::bump(&STATS.output_underruns);
         }
     }
 }

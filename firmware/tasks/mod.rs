@@ -6,6 +6,7 @@
 
 pub mod bridge;
 mod bridge_core;
+pub mod bridge_hans;
 mod encode;
 mod head_word;
 pub mod line;

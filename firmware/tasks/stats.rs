@@ -101,18 +101,21 @@ pub async fn stats() {
         let alarms = head.try_get().map(|s| s.alarms.0).unwrap_or(0);
         let s = &STATS;
         defmt::info!(
-            "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames, {} halves ({} underruns), \
-             back {} packets ({} resyncs, {} errors), status changes {}, head alarms {=u32:#x}",
+            "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames ({} refused), {} halves \
+             ({} underruns), back {} packets ({} resyncs, {} errors), status changes {} \
+             ({} bad frames), head alarms {=u32:#x}",
             Stats::take(&s.input_halves),
             Stats::take(&s.input_overruns),
             Stats::take(&s.sync_marks),
             Stats::take(&s.output_frames),
+            Stats::take(&s.output_refused),
             Stats::take(&s.output_halves),
             Stats::take(&s.output_underruns),
             Stats::take(&s.back_packets),
             Stats::take(&s.back_resyncs),
             Stats::take(&s.back_errors),
             Stats::take(&s.status_changes),
+            Stats::take(&s.status_faults),
             alarms,
         );
         match with_timeout(SNAPSHOT_WAIT, BRIDGE_SNAPSHOT.wait()).await {

@@ -1,5 +1,6 @@
-//! Thread-mode status tasks: the XY3-100 backchannel (both sides) and the XY2-100
-//! STATUS level (head side in, controller side out). Status is slow (packets every
+//! Thread-mode status tasks: the XY3-100 backchannel (both sides), the XY2-100
+//! STATUS level (head side in, controller side out) and the HANS-100 STATUS decoder
+//! (head side). Status is slow (packets every
 //! few milliseconds, a level that changes rarely), so none of this needs the
 //! high-priority executor.
 
@@ -12,7 +13,14 @@ use shared::xy3::back::{Event, Packet, Parser};
 
 use core::sync::atomic::Ordering;
 
-use crate::channels::{Stats, BACK_RATE, BACK_TX, CTRL_STATUS_OK, HEAD_STATUS, HEALTH, STATS};
+use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
+use shared::hans::StatusReceiver;
+use shared::model::FaultKind;
+
+use crate::board::HANS_FS_HZ;
+use crate::channels::{
+    Stats, BACK_RATE, BACK_TX, CTRL_STATUS_OK, HANS_STATUS_RAW, HEAD_STATUS, HEALTH, STATS,
+};
 use crate::drivers::backchannel::Backchannel;
 use crate::drivers::status_level::{StatusIn, StatusOut};
 
@@ -120,5 +128,45 @@ pub async fn status_level_out(pin: Output<'static>, level: StatusLevel) {
             Health::Fault
         });
         ticker.next().await;
+    }
+}
+
+/// HANS-100 STATUS from the head: decodes the SPI6 halves `line::hans_status_in`
+/// passes on (one in `HANS_STATUS_EVERY`, each a contiguous 205 us of signal) with a
+/// fresh `shared::hans::rx::HansRx` per half (the halves are not contiguous with each
+/// other), applies every frame that passed its checks through
+/// `shared::hans::StatusReceiver` and publishes the head's status to [`HEAD_STATUS`]
+/// when a half gave at least one frame (the bridge counts that as the status being
+/// seen). Frames that failed a check are counted (`status_faults`), never applied.
+/// Runs in thread mode: the decoder is too slow for the high-priority executor.
+#[embassy_executor::task]
+pub async fn hans_status() {
+    let mode = HansMode::Normal { channel: 1 };
+    let mut receiver = StatusReceiver::new();
+    let mut status = HeadStatus::default();
+    loop {
+        let half = HANS_STATUS_RAW.receive().await;
+        let mut rx = match HansRx::new(HANS_FS_HZ, mode) {
+            Ok(rx) => rx,
+            Err(e) => {
+                defmt::error!("hans status: {}", e);
+                return;
+            }
+        };
+        let mut frames = 0u32;
+        rx.push(&[&half], &mut |ev| match ev {
+            RxEvent::Frame(frame) => {
+                receiver.apply(&frame, &mut status);
+                frames += 1;
+            }
+            RxEvent::Fault {
+                kind: FaultKind::CheckFailed,
+                ..
+            } => Stats::bump(&STATS.status_faults),
+            RxEvent::Fault { .. } => {}
+        });
+        if frames > 0 {
+            HEAD_STATUS.sender().send(status.clone());
+        }
     }
 }
