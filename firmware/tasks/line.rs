@@ -75,7 +75,8 @@ pub async fn xy3_in(r: Xy3InRes, with_z: bool) {
     let z_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
     let mut session = 0u32;
     loop {
-        // Gate the clock before the SPIs of the last session go away.
+        // Gate the clock (the last session's SPIs are off by now), so the new ones
+        // start together.
         sck_bus.set_high();
         let rings = [&mut x_ring[..], &mut y_ring[..], &mut z_ring[..]];
         let lines = Xy3Lines {
@@ -88,6 +89,9 @@ pub async fn xy3_in(r: Xy3InRes, with_z: bool) {
         if let Err(e) = xy3_session(lines, rings, session, &mut sck_bus).await {
             defmt::warn!("xy3 in: {}; restarting all lines together", e);
             Stats::bump(&STATS.input_overruns);
+            // A failure that repeats at once must not spin the high-priority
+            // executor: one restart per millisecond at most.
+            embassy_time::Timer::after_millis(1).await;
         }
         session = session.wrapping_add(1);
     }
