@@ -81,7 +81,7 @@ impl Supervisor {
     /// Recomputes `quiet_until` after a change. Only the running state gets a quiet
     /// interval; "never" is `u64::MAX`, which at worst runs the rules once too often.
     fn refresh(&mut self) {
-        let deadline = |since: u64, timeout: u64| since.checked_add(timeout).unwrap_or(u64::MAX);
+        let deadline = |since: u64, timeout: u64| since.saturating_add(timeout);
         self.quiet_until = match (self.state, self.last_valid_ns) {
             // A zero timeout makes the input stale at once, whatever the clock does.
             (LinkState::Running, Some(last)) if self.timeout_ns != 0 => {
