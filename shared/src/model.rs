@@ -119,6 +119,16 @@ impl Position {
         })
     }
 
+    /// A position of this width with MSB-aligned value `aligned`, whose bits below
+    /// the width must be zero (for the bridge's per-axis mapping, which works in the
+    /// aligned form and keeps that true).
+    pub(crate) const fn with_aligned(self, aligned: u32) -> Position {
+        Position {
+            aligned,
+            bits: self.bits,
+        }
+    }
+
     /// The width the value arrived with.
     pub const fn bits(self) -> u8 {
         // At most 32.

@@ -210,12 +210,16 @@ impl Bridge {
         }
         match self.config.output.timing {
             Timing::Slaved => {
-                let mut out = self.blank_output();
-                let frame = out.frame.insert(ForwardFrame::default());
-                let t = self.tr.translate(f, frame);
+                let mut frame = ForwardFrame::default();
+                let t = self.tr.translate(f, &mut frame);
                 self.count_translation(&t);
-                self.complete(&mut out);
-                Some(out)
+                let head_back_rate = finish_frame(
+                    &mut frame,
+                    &mut self.held,
+                    &mut self.laser_forwarded,
+                    &mut self.counters.commands_forwarded,
+                );
+                Some(self.output(Some(frame), head_back_rate))
             }
             Timing::FreeRunning => {
                 // The older frame's positions are superseded; its one-off command /
@@ -272,47 +276,68 @@ impl Bridge {
     /// park frames.
     pub fn tick(&mut self, now_ns: u64) -> Output {
         self.poll(now_ns);
-        let mut out = self.blank_output();
-        match (self.sup.state(), self.config.output.timing) {
-            (LinkState::Running, Timing::Slaved) => {}
-            (LinkState::Running, Timing::FreeRunning) => {
-                if self.pending.is_some() {
-                    out.frame = self.pending.take();
-                } else {
-                    bump(&mut self.counters.repeated);
-                    self.positions_only(&mut out);
-                }
+        let state = self.sup.state();
+        if state == LinkState::Running
+            && self.config.output.timing == Timing::FreeRunning
+            && self.pending.is_some()
+        {
+            // The steady state: the newest input, completed where it lies and then
+            // moved out whole (no laser-off is due while running).
+            let mut head_back_rate = None;
+            if let Some(f) = self.pending.as_mut() {
+                head_back_rate = finish_frame(
+                    f,
+                    &mut self.held,
+                    &mut self.laser_forwarded,
+                    &mut self.counters.commands_forwarded,
+                );
             }
-            (LinkState::Holding, _) => self.positions_only(&mut out),
-            (LinkState::Safe, _) => match self.config.failsafe.after_hold {
-                AfterHold::Park => out.frame = Some(self.park),
-                AfterHold::Stop => {}
-            },
+            let frame = self.pending.take();
+            return self.output(frame, head_back_rate);
         }
-        if let Some(f) = out.frame.as_mut() {
-            if self.laser_off_due && self.sup.state() != LinkState::Running {
+        let frame = match (state, self.config.output.timing) {
+            (LinkState::Running, Timing::Slaved) => None,
+            (LinkState::Running, Timing::FreeRunning) => {
+                bump(&mut self.counters.repeated);
+                Some(self.positions_only())
+            }
+            (LinkState::Holding, _) => Some(self.positions_only()),
+            (LinkState::Safe, _) => match self.config.failsafe.after_hold {
+                AfterHold::Park => Some(self.park),
+                AfterHold::Stop => None,
+            },
+        };
+        let mut head_back_rate = None;
+        let frame = frame.map(|mut f| {
+            if self.laser_off_due && state != LinkState::Running {
                 f.laser = Some(LASER_OFF);
                 self.laser_off_due = false;
             }
-        }
-        self.complete(&mut out);
-        out
+            head_back_rate = finish_frame(
+                &mut f,
+                &mut self.held,
+                &mut self.laser_forwarded,
+                &mut self.counters.commands_forwarded,
+            );
+            f
+        });
+        self.output(frame, head_back_rate)
     }
 
     /// The last sent positions, without command or laser control (one-offs are
     /// never repeated).
-    #[inline(always)]
-    fn positions_only(&self, out: &mut Output) {
-        out.frame = Some(ForwardFrame {
+    fn positions_only(&self) -> ForwardFrame {
+        ForwardFrame {
             axes: self.held,
             command: None,
             laser: None,
-        });
+        }
     }
 
-    /// An output without a frame, with the state, alarms and laser outputs of now.
+    /// The output for `frame` (already completed by [`finish_frame`]), with the
+    /// state, alarms and laser outputs of now and a pending controller rate change.
     #[inline(always)]
-    fn blank_output(&mut self) -> Output {
+    fn output(&mut self, frame: Option<ForwardFrame>, head_back_rate: Option<BackRate>) -> Output {
         let running = self.sup.state() == LinkState::Running;
         let laser_cfg = &self.config.laser;
         let head_alarm = self.status.head.alarms.any() || self.sup.status_lost();
@@ -320,7 +345,7 @@ impl Bridge {
             && !(laser_cfg.off_on_head_alarm && head_alarm)
             && (laser_cfg.gate == GateSource::LinkOk || self.mo_pa);
         Output {
-            frame: None,
+            frame,
             state: self.sup.state(),
             alarms: self.alarms(),
             laser: LaserOutputs {
@@ -331,35 +356,44 @@ impl Bridge {
                     self.power.map(|_| 0)
                 },
             },
-            head_back_rate: None,
-            controller_back_rate: None,
+            head_back_rate,
+            controller_back_rate: self.rate_changed.take(),
         }
     }
+}
 
-    /// Completes an output in place: fills missing axes from the held positions,
-    /// records what was sent and hands over a pending controller rate change.
-    #[inline(always)]
-    fn complete(&mut self, out: &mut Output) {
-        out.controller_back_rate = self.rate_changed.take();
-        let Some(f) = out.frame.as_mut() else {
-            return;
-        };
-        for (slot, held) in f.axes.iter_mut().zip(self.held.iter_mut()) {
-            match slot {
-                Some(p) => *held = Some(*p),
-                None => *slot = *held,
+/// Completes a frame about to be sent: fills missing axes from the held positions,
+/// records what is sent (held positions, laser control forwarded, commands counted)
+/// and returns the backchannel rate an XY3-100 command in it sets on the head.
+/// A free function over the fields it needs, so it can work on the pending frame in
+/// place while the rest of the bridge is borrowed too.
+fn finish_frame(
+    f: &mut ForwardFrame,
+    held: &mut [Option<Position>; 5],
+    laser_forwarded: &mut bool,
+    commands_forwarded: &mut u32,
+) -> Option<BackRate> {
+    for (slot, held) in f.axes.iter_mut().zip(held.iter_mut()) {
+        match slot {
+            Some(p) => *held = Some(*p),
+            None => *slot = *held,
+        }
+    }
+    if f.laser.is_some() {
+        *laser_forwarded = f.laser != Some(LASER_OFF);
+    }
+    match f.command {
+        Some(Command::Xy3(code)) => {
+            bump(commands_forwarded);
+            match xy3::Command::from_code(code) {
+                Ok(xy3::Command::BackRate(r)) => Some(r),
+                _ => None,
             }
         }
-        if f.laser.is_some() {
-            self.laser_forwarded = f.laser != Some(LASER_OFF);
+        Some(_) => {
+            bump(commands_forwarded);
+            None
         }
-        if let Some(Command::Xy3(code)) = f.command {
-            bump(&mut self.counters.commands_forwarded);
-            if let Ok(xy3::Command::BackRate(r)) = xy3::Command::from_code(code) {
-                out.head_back_rate = Some(r);
-            }
-        } else if f.command.is_some() {
-            bump(&mut self.counters.commands_forwarded);
-        }
+        None => None,
     }
 }

@@ -55,6 +55,8 @@ pub(crate) struct Supervisor {
     status_lost: bool,
     /// Before this instant `poll` cannot change anything (0: always run the rules).
     quiet_until: u64,
+    /// The status watchdog's part of `quiet_until` (kept for `valid`'s update).
+    status_quiet: u64,
 }
 
 const NS_PER_US: u64 = 1_000;
@@ -75,23 +77,28 @@ impl Supervisor {
             status_ref_ns: None,
             status_lost: false,
             quiet_until: 0,
+            status_quiet: 0,
         }
     }
 
     /// Recomputes `quiet_until` after a change. Only the running state gets a quiet
     /// interval; "never" is `u64::MAX`, which at worst runs the rules once too often.
     fn refresh(&mut self) {
-        let deadline = |since: u64, timeout: u64| since.saturating_add(timeout);
+        self.status_quiet = match self.status_ref_ns {
+            _ if self.status_timeout_ns == 0 || self.status_lost => u64::MAX,
+            Some(since) => since.saturating_add(self.status_timeout_ns),
+            // The reference is set by the next poll.
+            None => 0,
+        };
+        self.refresh_input();
+    }
+
+    /// Recomputes `quiet_until` after a change of the input side only.
+    fn refresh_input(&mut self) {
         self.quiet_until = match (self.state, self.last_valid_ns) {
             // A zero timeout makes the input stale at once, whatever the clock does.
             (LinkState::Running, Some(last)) if self.timeout_ns != 0 => {
-                let status = match self.status_ref_ns {
-                    _ if self.status_timeout_ns == 0 || self.status_lost => u64::MAX,
-                    Some(since) => deadline(since, self.status_timeout_ns),
-                    // The reference is set by the next poll.
-                    None => 0,
-                };
-                deadline(last, self.timeout_ns).min(status)
+                last.saturating_add(self.timeout_ns).min(self.status_quiet)
             }
             _ => 0,
         };
@@ -157,7 +164,7 @@ impl Supervisor {
     pub fn valid(&mut self, now_ns: u64) -> bool {
         self.last_valid_ns = Some(now_ns);
         if self.state == LinkState::Running {
-            self.refresh();
+            self.refresh_input();
             return true;
         }
         self.run = self.run.saturating_add(1);

@@ -9,21 +9,68 @@ use crate::xy3::{self, BackRate};
 
 /// How one head axis is produced: from which input axis, at which width, inverted
 /// and shifted how. Resolved once from the configuration so the per-frame path does
-/// not re-derive widths and swaps.
+/// not re-derive widths and swaps, and works on the MSB-aligned value directly:
+/// rounding, inversion and offset are then a few word operations (the result equals
+/// [`map_position`], which the tests check).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 struct AxisRoute {
     source: Axis,
-    bits: u8,
-    invert: bool,
-    offset: i32,
+    /// Position 0 at the head width: the width of every result.
+    zero: Position,
+    /// The field's bits in the aligned value (the width from the top).
+    mask: u32,
+    /// Half an LSB of the field (0 for a 32-bit field: nothing to round).
+    half: u32,
+    /// XORed into the aligned value: `mask` to invert, 0 not to.
+    flip: u32,
+    /// `|offset|` LSBs aligned, saturated at the field (an offset as large as the
+    /// field takes any position to the end).
+    step: u32,
+    /// The offset is negative.
+    down: bool,
 }
 
 impl AxisRoute {
+    fn new(source: Axis, bits: u8, invert: bool, offset: i32) -> AxisRoute {
+        let bits = bits.clamp(1, 32);
+        let shift = 32 - u32::from(bits);
+        let mask = u32::MAX << shift;
+        let step = u64::from(offset.unsigned_abs()) << shift;
+        AxisRoute {
+            source,
+            zero: Position::from_raw(0, bits).unwrap_or(Position::CENTRE),
+            mask,
+            half: (1u32 << shift) >> 1,
+            flip: if invert { mask } else { 0 },
+            step: u32::try_from(step).unwrap_or(u32::MAX) & mask,
+            down: offset < 0,
+        }
+    }
+
     fn apply(&self, input: &ForwardFrame) -> Option<Position> {
-        input
-            .axis(self.source)
-            .map(|p| map_position(p, self.bits, self.invert, self.offset))
+        input.axis(self.source).map(|p| self.map(p))
+    }
+
+    /// `p` resized, inverted and shifted as configured.
+    #[inline(always)]
+    fn map(&self, p: Position) -> Position {
+        // Round to the field, saturating at full scale (as `Position::resized`).
+        let a = p.aligned();
+        let a = if a & self.mask == self.mask {
+            self.mask
+        } else {
+            a.wrapping_add(self.half) & self.mask
+        };
+        let a = a ^ self.flip;
+        // The offset saturates at both ends of the field instead of wrapping.
+        let a = if self.down {
+            a.saturating_sub(self.step)
+        } else {
+            a.saturating_add(self.step) & self.mask
+        };
+        // Every step kept the bits below the field zero.
+        self.zero.with_aligned(a)
     }
 }
 
@@ -55,23 +102,11 @@ pub(crate) struct Translated {
 }
 
 /// `p` at `bits`, inverted if asked, shifted by `offset` LSBs, clamped to the field:
-/// an offset must never wrap a position to the other end of the field.
+/// an offset must never wrap a position to the other end of the field. (The
+/// translator's own per-axis form of this, kept for the tests' arithmetic model.)
+#[cfg(test)]
 pub(super) fn map_position(p: Position, bits: u8, invert: bool, offset: i32) -> Position {
-    let p = p.resized(bits);
-    let p = if invert { p.inverted() } else { p };
-    if offset == 0 {
-        return p;
-    }
-    let raw = p.to_raw(bits);
-    // `raw` is within the field, so saturating at 0 and at the field's top is the
-    // clamp (in 32-bit arithmetic: a 32-bit field's top is `u32::MAX`).
-    let raw = if offset >= 0 {
-        let max = u32::MAX >> (32 - u32::from(p.bits()));
-        raw.saturating_add(offset.unsigned_abs()).min(max)
-    } else {
-        raw.saturating_sub(offset.unsigned_abs())
-    };
-    Position::from_raw(raw, bits).unwrap_or(p)
+    AxisRoute::new(Axis::X, bits, invert, offset).map(p)
 }
 
 /// A 20-bit configuration position at the head's width for `axis`.
@@ -90,11 +125,8 @@ impl Translator {
         } else {
             (Axis::X, Axis::Y)
         };
-        let route = |source, target, invert, offset| AxisRoute {
-            source,
-            bits: head.width(target),
-            invert,
-            offset,
+        let route = |source, target, invert, offset| {
+            AxisRoute::new(source, head.width(target), invert, offset)
         };
         let z: &ZConfig = &c.z;
         Translator {
