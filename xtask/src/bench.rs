@@ -148,7 +148,7 @@ pub fn report(stdout: &str, stderr: &str) -> Result {
         ));
     };
     println!(
-        "worst path: {name}: {per_frame:.1} instructions per frame (budget {BUDGET:.0}){}",
+        "budget figure ({name}): {per_frame:.1} instructions per frame (budget {BUDGET:.0}){}",
         if known {
             " -- OVER BUDGET, OPEN (see above)"
         } else {

@@ -35,9 +35,14 @@
 //!
 //! # Cost
 //! The pins are resolved once: a 32-entry table gives the BSRR data part for every
-//! pattern of one bit per line. Encoding transposes the lines' words eight bits at a
-//! time (an 8x8 bit-matrix transpose) and looks each bit time's pattern up, so the
-//! cost hardly depends on the number of lines and has no branches on the data.
+//! pattern of one bit per line. Encoding takes six bit times at a time: each line's
+//! six bits are spread five places apart by a 64-entry table and the lines merged
+//! one place apart, so each bit time's pattern index is a 5-bit field; per bit the
+//! encoder extracts it, looks the word up and stores it with the CLK-reset word. The
+//! loop is compiled once per frame size (fully unrolled) and once for heads without
+//! U and W (which skips their two lines). No branches on the data. About 385
+//! instructions per 32-bit frame period on X Y Z and 530 on all five lines on the
+//! Cortex-M7 (`cargo xtask qemu`), some 100 of them checking and encoding the frames.
 
 use core::fmt;
 
