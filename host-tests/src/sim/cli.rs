@@ -10,6 +10,7 @@ use std::process::ExitCode;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use shared::{xy2, xy3};
 
+use super::capture;
 use super::decode::{self, HansMode, Summary};
 use super::encode::{self, Encoded, ForwardTiming};
 use super::generate::{self, GenOptions, ImpairOpts, Pattern};
@@ -295,8 +296,14 @@ fn run_decode(a: &DecodeArgs) -> Result<(), SimError> {
             s
         }
         Protocol::Xy3Back => {
-            let wave = decode::read_capture(&a.input, &[names::BACK], &[names::BACK], 1, &map)?;
-            let (records, s) = decode::back(&wave, f64::from(a.link.baud))?;
+            let frames = capture::uart_line(
+                &a.input,
+                &map,
+                names::BACK,
+                names::BACK,
+                f64::from(a.link.baud),
+            )?;
+            let (records, s) = decode::back(frames);
             write_lines(stdout, "stdout", &records)?;
             s
         }

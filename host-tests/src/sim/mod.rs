@@ -5,12 +5,14 @@
 //! - [`jsonl`] — the JSON-lines formats (one record per frame / packet), parse and print;
 //! - [`generate`] — test patterns -> records, and the impairment options;
 //! - [`encode`] — records -> waveform (the path `generate` and `encode` share);
-//! - [`decode`] — capture -> records (backchannel now; the forward protocols plug in
-//!   their line-level receivers there);
+//! - [`capture`] — capture -> the firmware's receive DMA buffers (for `decode` and
+//!   `bridge`);
+//! - [`decode`] — capture -> the `shared` receivers -> records;
 //! - [`cli`] — the command line (clap) and the commands.
 //!
 //! Signals in files use the default names of [`names`]; `--map ROLE=NAME` renames them.
 
+pub mod capture;
 pub mod cli;
 pub mod decode;
 pub mod encode;
