@@ -82,31 +82,49 @@ impl Xy2Input {
     }
 }
 
-/// XY2-100: `clk sync x y` (+ `z` when `want_z` and the capture has it) -> port words.
-pub fn xy2(path: &Path, map: &NameMap, want_z: bool) -> Result<Xy2Input, SimError> {
-    let (r, d): (&[&str], &[&str]) = if want_z {
-        (
-            &[roles::CLK, roles::SYNC, roles::X, roles::Y, roles::Z],
-            &[
-                names::CLK,
-                names::SYNC,
-                names::XY2_DATA[0],
-                names::XY2_DATA[1],
-                names::XY2_DATA[2],
-            ],
-        )
+/// Which data lines a capture must or may have.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Lines<'a> {
+    /// These lines are required, no others are read (the bridge: what its receiver
+    /// takes).
+    Exactly(&'a [Axis]),
+    /// X and Y (XY2-100) or X (XY3-100) required, the others read when present
+    /// (`decode`).
+    Present,
+}
+
+/// The role and default file name of a data line (`None` for U / W on XY2-100).
+fn line_names(axis: Axis, xy2: bool) -> Option<(&'static str, &'static str)> {
+    let roles = [roles::X, roles::Y, roles::Z, roles::U, roles::W];
+    let names: &[&'static str] = if xy2 {
+        &names::XY2_DATA
     } else {
-        (
-            &[roles::CLK, roles::SYNC, roles::X, roles::Y],
-            &[
-                names::CLK,
-                names::SYNC,
-                names::XY2_DATA[0],
-                names::XY2_DATA[1],
-            ],
-        )
+        &names::XY3_DATA
     };
-    let wave = read_capture(path, r, d, 4, map)?;
+    Some((*roles.get(axis.index())?, *names.get(axis.index())?))
+}
+
+/// `clk sync` and the data lines of `lines`: roles, default names and the index
+/// from which they are optional.
+fn forward_names(lines: Lines<'_>, xy2: bool) -> (Vec<&'static str>, Vec<&'static str>, usize) {
+    let (axes, required): (&[Axis], usize) = match lines {
+        Lines::Exactly(a) => (a, a.len()),
+        Lines::Present if xy2 => (&[Axis::X, Axis::Y, Axis::Z], 2),
+        Lines::Present => (&Axis::ALL, 1),
+    };
+    let (mut r, mut d) = (vec![roles::CLK, roles::SYNC], vec![names::CLK, names::SYNC]);
+    for (role, name) in axes.iter().filter_map(|a| line_names(*a, xy2)) {
+        r.push(role);
+        d.push(name);
+    }
+    (r, d, 2 + required)
+}
+
+/// XY2-100: `clk sync` and the data lines of `lines` (X, Y, optionally Z) -> port
+/// words.
+pub fn xy2(path: &Path, map: &NameMap, lines: Lines<'_>) -> Result<Xy2Input, SimError> {
+    let (r, d, optional_from) = forward_names(lines, true);
+    let wave = read_capture(path, &r, &d, optional_from, map)?;
     let pins = PinMap {
         z: wave.get(roles::Z).and(XY2_PINS.z),
         ..XY2_PINS
@@ -140,21 +158,14 @@ impl Xy3Input {
     }
 }
 
-/// XY3-100: `clk sync x` + whichever of `y z u w` the capture has -> SPI bytes.
-pub fn xy3(path: &Path, map: &NameMap) -> Result<Xy3Input, SimError> {
-    let all = [roles::X, roles::Y, roles::Z, roles::U, roles::W];
-    let mut r: Vec<&str> = vec![roles::CLK, roles::SYNC];
-    r.extend(all);
-    let mut d: Vec<&str> = vec![names::CLK, names::SYNC];
-    d.extend(names::XY3_DATA);
-    // X is required; the other lines may be absent.
-    let wave = read_capture(path, &r, &d, 3, map)?;
+/// XY3-100: `clk sync` and the data lines of `lines` -> SPI bytes.
+pub fn xy3(path: &Path, map: &NameMap, lines: Lines<'_>) -> Result<Xy3Input, SimError> {
+    let (r, d, optional_from) = forward_names(lines, false);
+    let wave = read_capture(path, &r, &d, optional_from, map)?;
     let present: Vec<(Axis, &'static str, &'static str)> = Axis::ALL
         .into_iter()
-        .zip(all)
-        .zip(names::XY3_DATA)
-        .filter(|((_, role), _)| wave.get(role).is_some())
-        .map(|((a, role), key)| (a, role, key))
+        .filter_map(|a| line_names(a, false).map(|(role, key)| (a, role, key)))
+        .filter(|(_, role, _)| wave.get(role).is_some())
         .collect();
     let lanes: Vec<&str> = present.iter().map(|(_, role, _)| *role).collect();
     let spi = sample::xy3_spi(&wave, &lanes, PartialByte::Discard)?;
@@ -212,12 +223,12 @@ fn hans_names(channels: &[u8]) -> (Vec<&'static str>, Vec<&'static str>) {
 }
 
 /// HANS-100: the `channels` (1..=5, required) sampled by an oversampling clock of
-/// `oversample` x 12.5 MHz whose phase is drawn from `seed` -> `u16` rings.
+/// `fs_hz` whose phase is drawn from `seed` -> `u16` rings.
 pub fn hans(
     path: &Path,
     map: &NameMap,
     channels: &[u8],
-    oversample: u8,
+    fs_hz: f64,
     seed: u64,
 ) -> Result<HansInput, SimError> {
     let (mut r, mut d) = hans_names(channels);
@@ -229,41 +240,49 @@ pub fn hans(
     r.extend(ro);
     d.extend(dn);
     let wave = read_capture(path, &r, &d, required, map)?;
-    let used: Vec<&str> = r.get(..required).unwrap_or(&[]).to_vec();
-    let sampled_end = used
+    let used = r.get(..required).unwrap_or(&[]);
+    let (words, start_ps) = oversample(&wave, used, fs_hz, seed)?;
+    Ok(HansInput {
+        rings: channels.iter().copied().zip(words).collect(),
+        fs_hz,
+        start_ps,
+        capture_end_ps: wave.end_time(),
+    })
+}
+
+/// Samples the signals `used` of `wave` like the firmware's oversampling SPI slaves:
+/// a free-running clock of `fs_hz` with a phase inside the first sample period drawn
+/// from `seed`, `u16` words MSB first = earliest sample, up to 2 us after the signals'
+/// last change. Returns the words per signal and the first sample's time (ps).
+pub fn oversample(
+    wave: &Waveform,
+    used: &[&str],
+    fs_hz: f64,
+    seed: u64,
+) -> Result<(Vec<Vec<u16>>, f64), SimError> {
+    let fs_hz = crate::line::positive("sampling clock (Hz)", fs_hz)?;
+    let last = used
         .iter()
         .filter_map(|n| wave.get(n))
         .map(crate::wave::Signal::end_time)
         .max()
         .unwrap_or(0);
-    let fs_hz = 12.5e6 * f64::from(oversample);
-    // Phase: somewhere inside the first sample period, reproducible from the seed.
     let start_ps = (seed % 1000) as f64 / 1000.0 * PS_PER_S / fs_hz;
-    // 2 us of the lines' final levels after the last change: enough for a period
-    // still waiting for a missing channel to close (two words), too short for the
-    // idle level to look like a frame.
-    let end = sampled_end.saturating_add(2_000_000);
-    let words32 = Oversampler { fs_hz, start_ps }.sample(&wave, &used, end)?;
+    // 2 us of the lines' final levels after the last change: enough for a HANS-100
+    // period still waiting for a missing channel to close (two words), too short for
+    // the idle level to look like a frame.
+    let end = last.saturating_add(2_000_000);
+    let words32 = Oversampler { fs_hz, start_ps }.sample(wave, used, end)?;
     // The firmware's rings are u16, MSB first: each u32 is two of them.
-    let rings = channels
+    let words = words32
         .iter()
-        .copied()
-        .zip(words32)
-        .map(|(c, ch)| {
-            (
-                c,
-                ch.iter()
-                    .flat_map(|w| [(w >> 16) as u16, *w as u16])
-                    .collect(),
-            )
+        .map(|ch| {
+            ch.iter()
+                .flat_map(|w| [(w >> 16) as u16, *w as u16])
+                .collect()
         })
         .collect();
-    Ok(HansInput {
-        rings,
-        fs_hz,
-        start_ps,
-        capture_end_ps: wave.end_time(),
-    })
+    Ok((words, start_ps))
 }
 
 /// A UART line (role `role`, default file name `default`) -> 8N1 frames at `baud`.

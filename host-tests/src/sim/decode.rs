@@ -123,7 +123,7 @@ pub fn xy2(
     map: &NameMap,
     config: &xy2::LinkConfig,
 ) -> Result<(Vec<ForwardRecord>, Summary), SimError> {
-    let input = capture::xy2(path, map, true)?;
+    let input = capture::xy2(path, map, capture::Lines::Present)?;
     let (words, times) = (&input.words, &input.times);
     let mut rx = xy2::rx::Receiver::new(input.rx_pins(), *config).map_err(|e| SimError::BadOption {
         option: "--map",
@@ -250,7 +250,7 @@ pub fn xy3(
     path: &std::path::Path,
     map: &NameMap,
 ) -> Result<(Vec<ForwardRecord>, Summary), SimError> {
-    let input = capture::xy3(path, map)?;
+    let input = capture::xy3(path, map, capture::Lines::Present)?;
     let present = &input.present;
     let cap: &SpiCapture = &input.spi;
     let lines = xy3::rx::Lines::new(&input.axes()).ok_or_else(|| SimError::BadOption {
@@ -413,7 +413,7 @@ pub fn hans(
         HansMode::Normal(n) => vec![n],
         _ => (1..=5).collect(),
     };
-    let input = capture::hans(path, map, &channels, oversample, seed)?;
+    let input = capture::hans(path, map, &channels, 12.5e6 * f64::from(oversample), seed)?;
     let (start_ps, capture_end_ps) = (input.start_ps, input.capture_end_ps);
     let rx_mode = match mode {
         HansMode::Normal(channel) => hans::rx::Mode::Normal { channel },

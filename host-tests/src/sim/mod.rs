@@ -65,6 +65,10 @@ pub mod names {
     pub const HANS: [&str; 5] = ["ch1", "ch2", "ch3", "ch4", "ch5"];
     /// XY3-100 backchannel UART line.
     pub const BACK: &str = "back";
+    /// XY2-100 / HANS-100 STATUS line (head -> controller).
+    pub const STATUS: &str = "status";
+    /// The bridge's laser gate output (in `bridge`'s head-side file).
+    pub const LASER_GATE: &str = "laser_gate";
 }
 
 /// Everything that can stop a command. Each one ends the tool with a one-line message
