@@ -30,7 +30,8 @@ use super::encode::Progress;
 use super::{names, SimError};
 use crate::line::roles;
 use crate::pipeline::{
-    Change, ControllerInput, HeadOutput, HeadStatusInput, Options, Pipeline, PipelineCounters,
+    Change, ControllerInput, ControllerStatus, HeadOutput, HeadStatusInput, Options, Pipeline,
+    PipelineCounters,
 };
 use crate::vcd_io::{self, NameMap, WriteTimescale};
 use crate::wave::{Ps, Signal, Waveform};
@@ -139,14 +140,22 @@ enum CtrlData {
 
 /// The head-side status buffers of one capture.
 enum StatusData {
-    /// XY2-100 STATUS level: the line itself (sampled per output frame period).
-    Level(Signal),
+    /// XY2-100 STATUS level: the samples are in the chunks themselves.
+    Level,
     /// XY2-100 status word: one port sample per output bit.
     Word(Vec<u16>),
     /// XY3-100 backchannel bytes.
     Back(Vec<u8>),
     /// HANS-100 STATUS `u16` ring words.
     Hans(Vec<u16>),
+}
+
+/// A capture read into buffers: the data, its chunks in time order (ns) and the
+/// capture's end (ps).
+struct Read<D> {
+    data: D,
+    steps: Vec<(u64, Step)>,
+    end_ps: Ps,
 }
 
 /// One chunk of buffers, by index into the data above.
@@ -198,9 +207,7 @@ fn hans_channels(config: &Config) -> Vec<u8> {
 
 /// Reads the controller-side capture; returns the buffers, their chunks and the
 /// capture's end (ps).
-fn controller_steps(
-    run: &BridgeRun<'_>,
-) -> Result<(CtrlData, Vec<(u64, Step)>, Ps), SimError> {
+fn controller_steps(run: &BridgeRun<'_>) -> Result<Read<CtrlData>, SimError> {
     let c = &run.config;
     let mut steps = Vec::new();
     match c.controller.protocol {
@@ -222,7 +229,11 @@ fn controller_steps(
                 steps.push((ns(t), Step::Xy2(from..input.words.len())));
             }
             let end = input.times.last().copied().unwrap_or(0);
-            Ok((CtrlData::Xy2(input), steps, end))
+            Ok(Read {
+                data: CtrlData::Xy2(input),
+                steps,
+                end_ps: end,
+            })
         }
         Protocol::Xy3 => {
             let input = capture::xy3(run.input, run.map, Lines::Exactly(controller_lines(c)))?;
@@ -251,7 +262,11 @@ fn controller_steps(
                 ));
             }
             let end = last_byte.max(spi.end_times.last().copied().unwrap_or(0));
-            Ok((CtrlData::Xy3(input), steps, end))
+            Ok(Read {
+                data: CtrlData::Xy3(input),
+                steps,
+                end_ps: end,
+            })
         }
         Protocol::Hans => {
             let input = capture::hans(
@@ -270,7 +285,11 @@ fn controller_steps(
                 i = to;
             }
             let end = input.capture_end_ps;
-            Ok((CtrlData::Hans(input), steps, end))
+            Ok(Read {
+                data: CtrlData::Hans(input),
+                steps,
+                end_ps: end,
+            })
         }
     }
 }
@@ -284,22 +303,25 @@ fn status_steps(
     until_ps: Ps,
     out: &HeadOutput,
     options: &Options,
-) -> Result<(StatusData, Vec<(u64, Step)>, Ps), SimError> {
+) -> Result<Read<StatusData>, SimError> {
     let c = &run.config;
     let rate = u64::from(c.output.frame_rate_hz.max(1));
     let mut steps = Vec::new();
     match (c.head.protocol, c.head.xy2.status) {
         (Protocol::Xy2, StatusForm::Level) => {
             let wave = capture::read_capture(path, &[roles::STATUS], &[names::STATUS], 1, run.map)?;
-            let line = crate::line::signal(&wave, roles::STATUS)?.clone();
+            let line = crate::line::signal(&wave, roles::STATUS)?;
             let period_ps = 1_000_000_000_000 / rate;
             let mut t = 0;
             while t <= until_ps {
                 steps.push((ns(t), Step::Level(line.level_at(t))));
                 t += period_ps;
             }
-            let end = line.end_time();
-            Ok((StatusData::Level(line), steps, end))
+            Ok(Read {
+                data: StatusData::Level,
+                steps,
+                end_ps: line.end_time(),
+            })
         }
         (Protocol::Xy2, StatusForm::Word) => {
             let wave = capture::read_capture(path, &[roles::STATUS], &[names::STATUS], 1, run.map)?;
@@ -323,7 +345,11 @@ fn status_steps(
                 steps.push((ns_f(to as f64 * bit_ps), Step::Word(i..to)));
                 i = to;
             }
-            Ok((StatusData::Word(samples), steps, line.end_time()))
+            Ok(Read {
+                data: StatusData::Word(samples),
+                steps,
+                end_ps: line.end_time(),
+            })
         }
         (Protocol::Xy3, _) => {
             let baud = f64::from(c.controller.xy3.back_rate.baud());
@@ -338,7 +364,11 @@ fn status_steps(
             let end = frames
                 .last()
                 .map_or(0, |f| crate::line::ps(f.time as f64 + 10.0 * bit_ps));
-            Ok((StatusData::Back(bytes), steps, end))
+            Ok(Read {
+                data: StatusData::Back(bytes),
+                steps,
+                end_ps: end,
+            })
         }
         (Protocol::Hans, _) => {
             let wave = capture::read_capture(path, &[roles::STATUS], &[names::STATUS], 1, run.map)?;
@@ -349,10 +379,17 @@ fn status_steps(
             let mut i = 0;
             while i < ring.len() {
                 let to = (i + HANS_WORDS_PER_CHUNK).min(ring.len());
-                steps.push((ns_f(start_ps + to as f64 * word_ps), Step::HansStatus(i..to)));
+                steps.push((
+                    ns_f(start_ps + to as f64 * word_ps),
+                    Step::HansStatus(i..to),
+                ));
                 i = to;
             }
-            Ok((StatusData::Hans(ring), steps, wave.end_time()))
+            Ok(Read {
+                data: StatusData::Hans(ring),
+                steps,
+                end_ps: wave.end_time(),
+            })
         }
     }
 }
@@ -366,9 +403,10 @@ fn feed(
     status: Option<&StatusData>,
 ) -> Result<(), SimError> {
     let r = match (step, ctrl, status) {
-        (Step::Xy2(r), CtrlData::Xy2(d), _) => {
-            p.feed(t, ControllerInput::Xy2(d.words.get(r.clone()).unwrap_or(&[])))
-        }
+        (Step::Xy2(r), CtrlData::Xy2(d), _) => p.feed(
+            t,
+            ControllerInput::Xy2(d.words.get(r.clone()).unwrap_or(&[])),
+        ),
         (Step::Xy3 { bytes, end }, CtrlData::Xy3(d), _) => {
             let lines: Vec<&[u8]> = d
                 .spi
@@ -376,9 +414,7 @@ fn feed(
                 .iter()
                 .map(|l| l.get(bytes.clone()).unwrap_or(&[]))
                 .collect();
-            let ends = end
-                .and_then(|k| d.spi.frame_ends.get(k..=k))
-                .unwrap_or(&[]);
+            let ends = end.and_then(|k| d.spi.frame_ends.get(k..=k)).unwrap_or(&[]);
             p.feed(
                 t,
                 ControllerInput::Xy3 {
@@ -396,17 +432,15 @@ fn feed(
             }
             p.feed(t, ControllerInput::Hans(chunks))
         }
-        (Step::Level(l), _, Some(StatusData::Level(_))) => {
+        (Step::Level(l), _, Some(StatusData::Level)) => {
             p.feed_status(t, HeadStatusInput::Xy2Level(&[*l]))
         }
-        (Step::Word(r), _, Some(StatusData::Word(s))) => p.feed_status(
-            t,
-            HeadStatusInput::Xy2Word(s.get(r.clone()).unwrap_or(&[])),
-        ),
-        (Step::Back(k), _, Some(StatusData::Back(b))) => p.feed_status(
-            t,
-            HeadStatusInput::Xy3Back(b.get(*k..=*k).unwrap_or(&[])),
-        ),
+        (Step::Word(r), _, Some(StatusData::Word(s))) => {
+            p.feed_status(t, HeadStatusInput::Xy2Word(s.get(r.clone()).unwrap_or(&[])))
+        }
+        (Step::Back(k), _, Some(StatusData::Back(b))) => {
+            p.feed_status(t, HeadStatusInput::Xy3Back(b.get(*k..=*k).unwrap_or(&[])))
+        }
         (Step::HansStatus(r), _, Some(StatusData::Hans(s))) => p.feed_status(
             t,
             HeadStatusInput::HansStatus(s.get(r.clone()).unwrap_or(&[])),
@@ -463,17 +497,20 @@ pub fn run(run: &BridgeRun<'_>) -> Result<Report, SimError> {
         ..Options::default()
     };
     let mut p = Pipeline::new(&run.config, options).map_err(pipeline_err)?;
-    let (ctrl, mut steps, ctrl_end) = controller_steps(run)?;
+    let Read {
+        data: ctrl,
+        mut steps,
+        end_ps: ctrl_end,
+    } = controller_steps(run)?;
     let rate = u64::from(run.config.output.frame_rate_hz.max(1));
     let period_ps = 1_000_000_000_000 / rate;
     let mut end_ps = ctrl_end;
     let status = match run.head_status {
         Some(path) => {
-            let (data, s, status_end) =
-                status_steps(run, path, ctrl_end, &p.head_output(), p.options())?;
-            steps.extend(s);
-            end_ps = end_ps.max(status_end);
-            Some(data)
+            let r = status_steps(run, path, ctrl_end, &p.head_output(), p.options())?;
+            steps.extend(r.steps);
+            end_ps = end_ps.max(r.end_ps);
+            Some(r.data)
         }
         None => None,
     };
@@ -495,7 +532,7 @@ pub fn run(run: &BridgeRun<'_>) -> Result<Report, SimError> {
     let mut head = p.head_output().to_waveform()?;
     head.add(gate_signal(p.gate()))?;
     write(run.output_dir, HEAD_FILE, head, &mut files)?;
-    let ctrl_status = p.controller_status().to_waveform()?;
+    let ctrl_status = controller_status_wave(&run.config, &p.controller_status(), &ctrl)?;
     write(run.output_dir, STATUS_FILE, ctrl_status, &mut files)?;
     Ok(Report {
         config: run.config,
@@ -509,6 +546,59 @@ pub fn run(run: &BridgeRun<'_>) -> Result<Report, SimError> {
         had_status: run.head_status.is_some(),
         files,
     })
+}
+
+/// The controller-side status line the bridge drives, as a waveform (`STATUS` or
+/// `UART` role).
+fn controller_status_wave(
+    config: &Config,
+    cs: &ControllerStatus,
+    ctrl: &CtrlData,
+) -> Result<Waveform, SimError> {
+    let signal = match (
+        config.controller.protocol,
+        config.controller.xy2.status,
+        ctrl,
+    ) {
+        (Protocol::Xy2, StatusForm::Word, CtrlData::Xy2(input)) => {
+            status_word_signal(&cs.words, &input.times)
+        }
+        (Protocol::Xy2, ..) => cs.level_signal(),
+        (Protocol::Xy3, ..) => cs.back_signal(),
+        (Protocol::Hans, ..) => cs.hans_signal()?,
+    };
+    let mut wave = Waveform::new();
+    wave.add(signal)?;
+    Ok(wave)
+}
+
+/// XY2-100 status words towards the controller on its own clock: each word the
+/// bridge had ready when a controller frame ended goes out MSB first during the
+/// controller's next frame, each bit set up at the CLK rising edge before the falling
+/// edge the controller samples it on (`sample_times`: the capture's CLK falling edges).
+fn status_word_signal(words: &[(u64, u32)], sample_times: &[Ps]) -> Signal {
+    let mut s = Signal::new(roles::STATUS, false);
+    let mut last = 0;
+    for &(t_ns, frame) in words {
+        let first = sample_times.partition_point(|&t| t <= t_ns.saturating_mul(1000));
+        for i in 0..20usize {
+            let Some(&fall) = sample_times.get(first + i) else {
+                return s;
+            };
+            let prev = (first + i)
+                .checked_sub(1)
+                .and_then(|k| sample_times.get(k))
+                .copied()
+                .unwrap_or(0);
+            // The rising edge is half-way between two falling edges.
+            let at = prev + (fall - prev) / 2;
+            if at >= last {
+                let _ = s.push(at, frame >> (19 - i) & 1 != 0);
+                last = at;
+            }
+        }
+    }
+    s
 }
 
 /// The laser gate output as a signal.
@@ -584,10 +674,13 @@ impl fmt::Display for Report {
         let cfg = &self.config;
         writeln!(
             f,
-            "bridge {} controller -> {} head, {:?} output at {} Hz, {} simulated",
+            "bridge {} controller -> {} head, {} output at {} Hz, {} simulated",
             protocol_name(cfg.controller.protocol),
             protocol_name(cfg.head.protocol),
-            cfg.output.timing,
+            match cfg.output.timing {
+                shared::bridge::Timing::FreeRunning => "free-running",
+                shared::bridge::Timing::Slaved => "slaved",
+            },
             cfg.output.frame_rate_hz,
             ms(self.end_ns)
         )?;

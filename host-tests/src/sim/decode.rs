@@ -125,10 +125,11 @@ pub fn xy2(
 ) -> Result<(Vec<ForwardRecord>, Summary), SimError> {
     let input = capture::xy2(path, map, capture::Lines::Present)?;
     let (words, times) = (&input.words, &input.times);
-    let mut rx = xy2::rx::Receiver::new(input.rx_pins(), *config).map_err(|e| SimError::BadOption {
-        option: "--map",
-        message: e.to_string(),
-    })?;
+    let mut rx =
+        xy2::rx::Receiver::new(input.rx_pins(), *config).map_err(|e| SimError::BadOption {
+            option: "--map",
+            message: e.to_string(),
+        })?;
     let mut out = Vec::new();
     let mut sum = Summary::default();
     // The last bit time seen in a good frame (ps), for periods too short to measure.
