@@ -111,7 +111,10 @@ impl CtrlStatus {
             form: c.xy2.status,
             step: 0,
             hans: (c.protocol == Protocol::Hans).then(|| Box::new(HansRing::new())),
-            back_free_ns: 0,
+            // The first poll is one step in: a start bit at time 0 cannot be told
+            // from a line that was low all along (a VCD's first value is its level
+            // at 0), so a UART needs some idle-high time before its first byte.
+            back_free_ns: STEP_NS,
             baud: c.xy3.back_rate.baud(),
         }
     }

@@ -742,7 +742,7 @@ impl fmt::Display for Report {
         if self.had_status {
             writeln!(
                 f,
-                "  head status: {} items, {} faults",
+                "  head status received: {} items, {} faults",
                 self.pipeline.status_items, self.pipeline.status_faults
             )?;
         } else if cfg.failsafe.status_timeout_us > 0 {
