@@ -11,8 +11,10 @@ use std::process::Command;
 use host_tests::sim::demo::{hans_head_status, HEALTHY};
 use host_tests::sim::jsonl::{self, BackRecord, Channel, ForwardRecord, HansRecord};
 use host_tests::vcd_io::{read_vcd_file, write_vcd_file, NameMap, WriteTimescale};
+use host_tests::wave::{Signal, Waveform};
 use shared::hans::GalvoAlarms;
 use shared::model::Position;
+use shared::xy2;
 
 const BIN: &str = env!("CARGO_BIN_EXE_bridge-sim");
 
@@ -104,10 +106,11 @@ fn xy_forward(r: &ForwardRecord) -> Option<(Position, Position)> {
 /// Decodes the head-side file as `head` (xy2 / xy3 / hans): X/Y as head-width raw
 /// values, and the number of error records.
 fn head_positions(d: &Path, head: &str, bits: u8) -> (Vec<(u32, u32)>, usize) {
-    let o = ok_in(
-        d,
-        &["decode", "--protocol", head, "--input", "out/head.vcd"],
-    );
+    let mut args = vec!["decode", "--protocol", head, "--input", "out/head.vcd"];
+    if head == "xy2" && bits == 18 {
+        args.extend(["--xy2-mode", "18"]);
+    }
+    let o = ok_in(d, &args);
     let mut pos = Vec::new();
     let mut errors = 0;
     if head == "hans" {
@@ -344,6 +347,77 @@ fn xy3_and_hans_controllers_with_axis_map() {
 }
 
 #[test]
+fn the_other_pairings() {
+    let d = dir("others");
+    let xy3 = sent_positions(&generate(
+        &d,
+        "xy3",
+        &[
+            "--protocol",
+            "xy3",
+            "--pattern",
+            "random",
+            "--frames",
+            "300",
+        ],
+    ));
+    let hans = sent_hans(&generate(
+        &d,
+        "hans",
+        &[
+            "--protocol",
+            "hans",
+            "--pattern",
+            "random",
+            "--frames",
+            "300",
+        ],
+    ));
+    // (controller, capture, frames sent, head, head bits, extra keys, frames the
+    // receivers need to lock: HANS-100 in and out take about two each).
+    let cases: [(&str, &str, &[(Position, Position)], &str, u8, &str, usize); 4] = [
+        (
+            "xy3",
+            "xy3.vcd",
+            &xy3,
+            "xy3",
+            26,
+            "[head.xy3]\nframe_bits = 32\n",
+            1,
+        ),
+        ("xy3", "xy3.vcd", &xy3, "hans", 20, "", 3),
+        (
+            "hans",
+            "hans.vcd",
+            &hans,
+            "xy2",
+            18,
+            "[head.xy2]\nmode = \"extended18\"\nenhanced_commands = false\n",
+            3,
+        ),
+        ("hans", "hans.vcd", &hans, "hans", 20, "", 6),
+    ];
+    for (ctrl, input, sent, head, bits, extra, skip) in cases {
+        let o = bridge(&d, &config(ctrl, head, extra), input, &[]);
+        assert!(counter(&o.stderr, "frames ok") >= 298, "{}", o.stderr);
+        assert_eq!(counter(&o.stderr, "check failures"), 0, "{}", o.stderr);
+        let (got, errors) = head_positions(&d, head, bits);
+        assert_eq!(errors, 0, "{ctrl} -> {head}");
+        assert!(got.len() >= 280, "{ctrl} -> {head}: {} frames", got.len());
+        check_forwarded(
+            sent,
+            &got,
+            bits,
+            false,
+            RECOVERY,
+            skip,
+            3,
+            counter(&o.stderr, "repeated"),
+        );
+    }
+}
+
+#[test]
 fn broken_line_is_never_forwarded_then_hold_and_park() {
     let d = dir("broken");
     // 3000 XY2-100 frames (30 ms); Y opens at 10 ms: every frame from then on fails.
@@ -473,6 +547,114 @@ fn head_status_reaches_the_controller() {
     let o = bridge(&d, &cfg_short, "in.vcd", &[]);
     assert_eq!(counter(&o.stderr, "head status losses"), 1, "{}", o.stderr);
     assert!(o.stderr.contains("STATUS_LOST"), "{}", o.stderr);
+}
+
+/// An XY2-100 head's STATUS line sending `word` in every output frame period, in
+/// the geometry the bridge samples it: one sample per output bit (500 ns), the
+/// frame's first bit in sample 1 of each 20-sample period.
+fn xy2_status_word_line(word: xy2::StatusWord, periods: usize) -> Waveform {
+    let frame = word.to_frame(&xy2::LinkConfig::default());
+    let mut s = Signal::new("status", false);
+    for p in 0..periods {
+        for i in 0..20 {
+            let sample = (p * 20 + 1 + i) as u64;
+            s.push(sample * 500_000, frame >> (19 - i) & 1 != 0)
+                .unwrap();
+        }
+    }
+    let mut w = Waveform::new();
+    w.add(s).unwrap();
+    w
+}
+
+/// The status words on the controller's `status` line, read at the controller's
+/// own CLK falling edges, one per controller frame (20 samples ending in SYNC low).
+fn xy2_status_words_at_controller(d: &Path) -> Vec<Result<xy2::StatusWord, xy2::StatusError>> {
+    let ctrl = read_vcd_file(&d.join("in.vcd"), &["clk", "sync"], &NameMap::new()).unwrap();
+    let status = read_vcd_file(
+        &d.join("out/controller-status.vcd"),
+        &["status"],
+        &NameMap::new(),
+    )
+    .unwrap();
+    let (sync, line) = (ctrl.get("sync").unwrap(), status.get("status").unwrap());
+    let mut words = Vec::new();
+    let (mut acc, mut n) = (0u32, 0);
+    for t in ctrl.get("clk").unwrap().falling_edges() {
+        acc = (acc << 1 | u32::from(line.level_at(t))) & 0xF_FFFF;
+        n += 1;
+        if !sync.level_at(t) {
+            if n == 20 {
+                words.push(xy2::StatusWord::from_frame(
+                    acc,
+                    &xy2::LinkConfig::default(),
+                ));
+            }
+            n = 0;
+        }
+    }
+    words
+}
+
+#[test]
+fn xy2_status_words_both_ways() {
+    let d = dir("xy2_word");
+    generate(
+        &d,
+        "in",
+        &[
+            "--protocol",
+            "xy2",
+            "--pattern",
+            "circle",
+            "--frames",
+            "400",
+        ],
+    );
+    // The head reports an over-temperature in every word.
+    let hot = xy2::StatusWord {
+        temperature_ok: false,
+        ..xy2::StatusWord::ALL_OK
+    };
+    write_vcd_file(
+        &d.join("status.vcd"),
+        &xy2_status_word_line(hot, 400),
+        WriteTimescale::Ps,
+    )
+    .unwrap();
+    let cfg = config(
+        "xy2",
+        "xy2",
+        "[controller.xy2]\nstatus = \"word\"\n[head.xy2]\nstatus = \"word\"\n",
+    );
+    let o = bridge(&d, &cfg, "in.vcd", &["--head-status", "status.vcd"]);
+    assert!(
+        counter(&o.stderr, "head status received:") >= 390,
+        "{}",
+        o.stderr
+    );
+    assert!(
+        o.stderr.contains("alarms at the end: temperature"),
+        "{}",
+        o.stderr
+    );
+    assert!(
+        o.stderr.contains("laser gate: off at 0.000 ms\n"),
+        "{}",
+        o.stderr
+    );
+    // The controller reads a valid status word in every frame after the first:
+    // INPUT_LOST (power bit cleared) until the link runs, then the head's
+    // over-temperature.
+    let words = xy2_status_words_at_controller(&d);
+    assert_eq!(words.len(), 400);
+    let words: Vec<xy2::StatusWord> = words[1..].iter().map(|w| w.unwrap()).collect();
+    assert!(!words[0].power_ok);
+    let running = words.iter().position(|w| w.power_ok).unwrap();
+    assert!((8..=12).contains(&running), "running from frame {running}");
+    for w in &words[running..] {
+        assert_eq!(*w, hot);
+    }
 }
 
 #[test]

@@ -528,6 +528,9 @@ pub fn run(run: &BridgeRun<'_>) -> Result<Report, SimError> {
         path: run.output_dir.display().to_string(),
         message: e.to_string(),
     })?;
+    if steps.len() >= Progress::MIN_ITEMS {
+        eprintln!("bridge: writing {} ...", run.output_dir.display());
+    }
     let mut files = Vec::new();
     let mut head = p.head_output().to_waveform()?;
     head.add(gate_signal(p.gate()))?;
@@ -580,7 +583,10 @@ fn status_word_signal(words: &[(u64, u32)], sample_times: &[Ps]) -> Signal {
     let mut s = Signal::new(roles::STATUS, false);
     let mut last = 0;
     for &(t_ns, frame) in words {
-        let first = sample_times.partition_point(|&t| t <= t_ns.saturating_mul(1000));
+        // The word was ready at the frame's last sample (`t_ns` is its time rounded
+        // to the ns): it goes out from the sample after that.
+        let first =
+            sample_times.partition_point(|&t| t <= t_ns.saturating_mul(1000).saturating_add(500));
         for i in 0..20usize {
             let Some(&fall) = sample_times.get(first + i) else {
                 return s;
