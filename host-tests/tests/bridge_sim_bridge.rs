@@ -134,21 +134,28 @@ fn head_positions(d: &Path, head: &str, bits: u8) -> (Vec<(u32, u32)>, usize) {
     (pos, errors)
 }
 
-/// The head must show exactly the controller's frames from the `recovery`-th on,
-/// resized to `bits` (and swapped when `swap`), in order, each at least once (a
-/// repeat is the previous frame again), ending within the last `tail` frames.
-/// `skip_head` = frames of the head stream the head-side decoder needs to lock.
-#[allow(clippy::too_many_arguments)]
-fn check_forwarded(
-    sent: &[(Position, Position)],
-    got: &[(u32, u32)],
+/// What a head-side file must show.
+struct Expect {
+    /// The head's position width.
     bits: u8,
+    /// `axes.swap_xy`.
     swap: bool,
-    recovery: usize,
-    skip_head: usize,
-    tail: usize,
+    /// Frames of the streams the receivers need to lock (HANS-100 in or out: about
+    /// two each).
+    skip: usize,
+    /// The bridge's `repeated` counter.
     repeated: u64,
-) {
+}
+
+/// Frames the head may stop short of the last one sent (the tail of the run).
+const TAIL: usize = 3;
+
+/// The head must show exactly the controller's frames from the `RECOVERY`-th on,
+/// resized (and swapped), in order, each at least once (a repeat is the previous
+/// frame again), ending within the last [`TAIL`] frames.
+fn check_forwarded(sent: &[(Position, Position)], got: &[(u32, u32)], e: &Expect) {
+    let (bits, swap, recovery, skip_head, tail, repeated) =
+        (e.bits, e.swap, RECOVERY, e.skip, TAIL, e.repeated);
     let want: Vec<(u32, u32)> = sent
         .iter()
         .map(|(x, y)| {
@@ -213,6 +220,9 @@ fn sent_hans(lines: &[String]) -> Vec<(Position, Position)> {
 
 const RECOVERY: usize = 10;
 
+/// The X/Y positions `generate` sent.
+type Sent = [(Position, Position)];
+
 fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
@@ -250,16 +260,13 @@ fn xy2_to_xy3_and_hans_heads() {
         assert!(o.stderr.contains("link: Safe at 0.000 ms, Running at"));
         let (got, errors) = head_positions(&d, head, bits);
         assert_eq!(errors, 0, "{head}");
-        check_forwarded(
-            &sent,
-            &got,
+        let e = Expect {
             bits,
-            false,
-            RECOVERY,
+            swap: false,
             skip,
-            3,
-            counter(&o.stderr, "repeated"),
-        );
+            repeated: counter(&o.stderr, "repeated"),
+        };
+        check_forwarded(&sent, &got, &e);
         // The head-side file names its signals as documented.
         let names = if head == "hans" {
             "ch1 ch2 ch3 ch4 ch5 laser_gate"
@@ -305,7 +312,13 @@ fn xy3_and_hans_controllers_with_axis_map() {
     );
     let (got, errors) = head_positions(&d, "xy2", 16);
     assert_eq!(errors, 0);
-    check_forwarded(&sent, &got, 16, true, RECOVERY, 1, 3, repeated);
+    let e = Expect {
+        bits: 16,
+        swap: true,
+        skip: 1,
+        repeated,
+    };
+    check_forwarded(&sent, &got, &e);
 
     // HANS-100 (super mode) -> XY3-100 32-bit: widening 20 -> 26 bits.
     let sent = sent_hans(&generate(
@@ -334,16 +347,13 @@ fn xy3_and_hans_controllers_with_axis_map() {
     assert!(counter(&o.stderr, "frames ok") >= 297, "{}", o.stderr);
     let (got, errors) = head_positions(&d, "xy3", 26);
     assert_eq!(errors, 0);
-    check_forwarded(
-        &sent,
-        &got,
-        26,
-        false,
-        RECOVERY,
-        3,
-        3,
-        counter(&o.stderr, "repeated"),
-    );
+    let e = Expect {
+        bits: 26,
+        swap: false,
+        skip: 3,
+        repeated: counter(&o.stderr, "repeated"),
+    };
+    check_forwarded(&sent, &got, &e);
 }
 
 #[test]
@@ -375,7 +385,7 @@ fn the_other_pairings() {
     ));
     // (controller, capture, frames sent, head, head bits, extra keys, frames the
     // receivers need to lock: HANS-100 in and out take about two each).
-    let cases: [(&str, &str, &[(Position, Position)], &str, u8, &str, usize); 4] = [
+    let cases: [(&str, &str, &Sent, &str, u8, &str, usize); 4] = [
         (
             "xy3",
             "xy3.vcd",
@@ -404,16 +414,13 @@ fn the_other_pairings() {
         let (got, errors) = head_positions(&d, head, bits);
         assert_eq!(errors, 0, "{ctrl} -> {head}");
         assert!(got.len() >= 280, "{ctrl} -> {head}: {} frames", got.len());
-        check_forwarded(
-            sent,
-            &got,
+        let e = Expect {
             bits,
-            false,
-            RECOVERY,
+            swap: false,
             skip,
-            3,
-            counter(&o.stderr, "repeated"),
-        );
+            repeated: counter(&o.stderr, "repeated"),
+        };
+        check_forwarded(sent, &got, &e);
     }
 }
 
