@@ -43,10 +43,12 @@
 //! changes are kept for tests; [`HeadOutput::to_waveform`] and the
 //! [`ControllerStatus`] helpers turn the buffers into waveforms (`crate::line`).
 
+pub mod check;
 mod ctrl_status;
 mod head_status;
 mod input;
 mod output;
+pub mod stimulus;
 
 use std::fmt;
 

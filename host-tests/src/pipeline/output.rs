@@ -310,7 +310,9 @@ impl Output {
             rate,
             lead,
             slaved_lead_ns: options.slaved_lead_ns,
-            next_slot: 0,
+            // HANS-100: at time 0 the ring plays slot 0 (zeros) and slot `lead` is
+            // the first one written.
+            next_slot: if protocol == Protocol::Hans { lead } else { 0 },
             enc,
             words: Vec::new(),
             ticks_per_frame,
