@@ -125,11 +125,17 @@ fn forward_names(lines: Lines<'_>, xy2: bool) -> (Vec<&'static str>, Vec<&'stati
 pub fn xy2(path: &Path, map: &NameMap, lines: Lines<'_>) -> Result<Xy2Input, SimError> {
     let (r, d, optional_from) = forward_names(lines, true);
     let wave = read_capture(path, &r, &d, optional_from, map)?;
+    xy2_from_wave(&wave)
+}
+
+/// XY2-100 from a waveform with role-named signals (`CLK SYNC X Y`, and `Z` when
+/// present) -> port words.
+pub fn xy2_from_wave(wave: &Waveform) -> Result<Xy2Input, SimError> {
     let pins = PinMap {
         z: wave.get(roles::Z).and(XY2_PINS.z),
         ..XY2_PINS
     };
-    let (mut words, mut times) = sample::xy2_port_samples(&wave, &pins)?;
+    let (mut words, mut times) = sample::xy2_port_samples(wave, &pins)?;
     // The receiver only trusts a frame whose SYNC rising edge it saw (a low sample,
     // then high ones). The firmware gets samples at CLK edges only, so a capture that
     // starts with the line idle and CLK stopped would lose its first frame although the
@@ -162,13 +168,19 @@ impl Xy3Input {
 pub fn xy3(path: &Path, map: &NameMap, lines: Lines<'_>) -> Result<Xy3Input, SimError> {
     let (r, d, optional_from) = forward_names(lines, false);
     let wave = read_capture(path, &r, &d, optional_from, map)?;
+    xy3_from_wave(&wave)
+}
+
+/// XY3-100 from a waveform with role-named signals (`CLK SYNC X`, and whichever of
+/// `Y Z U W` it has) -> SPI bytes.
+pub fn xy3_from_wave(wave: &Waveform) -> Result<Xy3Input, SimError> {
     let present: Vec<(Axis, &'static str, &'static str)> = Axis::ALL
         .into_iter()
         .filter_map(|a| line_names(a, false).map(|(role, key)| (a, role, key)))
         .filter(|(_, role, _)| wave.get(role).is_some())
         .collect();
     let lanes: Vec<&str> = present.iter().map(|(_, role, _)| *role).collect();
-    let spi = sample::xy3_spi(&wave, &lanes, PartialByte::Discard)?;
+    let spi = sample::xy3_spi(wave, &lanes, PartialByte::Discard)?;
     Ok(Xy3Input { spi, present })
 }
 
