@@ -253,6 +253,8 @@ fn xy2_to_xy3_and_hans_heads() {
         ("xy3", 20, 1, ""),
         ("xy3", 26, 1, "[head.xy3]\nframe_bits = 32\n"),
         ("hans", 20, 3, ""),
+        // Slaved: one output frame per input frame, never a repeat.
+        ("xy3", 20, 1, "[output]\ntiming = \"slaved\"\n"),
     ] {
         let o = bridge(&d, &config("xy2", head, extra), "in.vcd", &[]);
         assert_eq!(counter(&o.stderr, "frames ok"), 300, "{}", o.stderr);
@@ -422,6 +424,40 @@ fn the_other_pairings() {
         };
         check_forwarded(sent, &got, &e);
     }
+}
+
+/// `fixtures/xy2_capture_10ns.vcd` (a logic analyser's conventions: 10 ns timescale,
+/// signals D0..D3, other signals, the clock stopping between two frames, no Z) through
+/// an XY2-100 -> XY2-100 bridge: the position, then the enhanced command passed on
+/// X (a one-off: the next slots hold X's last position), each slot as expected.
+#[test]
+fn capture_from_another_tool_through_the_bridge() {
+    let d = dir("fixture");
+    let vcd = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/xy2_capture_10ns.vcd");
+    let cfg = "[controller]\nprotocol = \"xy2\"\n[head]\nprotocol = \"xy2\"\n\
+               [z]\nsource = \"none\"\n[failsafe]\nrecovery_frames = 1\n";
+    let map = [
+        "--map", "clk=D0", "--map", "sync=D1", "--map", "x=D2", "--map", "y=D3",
+    ];
+    let o = bridge(&d, cfg, vcd.to_str().unwrap(), &map);
+    assert_eq!(counter(&o.stderr, "frames ok"), 2, "{}", o.stderr);
+    assert_eq!(counter(&o.stderr, "(forwarded"), 1, "{}", o.stderr);
+    assert!(o.stderr.contains("out/head.vcd (clk sync x y laser_gate)"));
+    let dec = ok_in(
+        &d,
+        &["decode", "--protocol", "xy2", "--input", "out/head.vcd"],
+    );
+    let want = concat!(
+        r#"{"t_ns":30000,"x":{"pos":0,"bits":16},"y":{"pos":32768,"bits":16}}"#,
+        "\n",
+        r#"{"t_ns":40000,"x":{"cmd":4660},"y":{"pos":65535,"bits":16}}"#,
+        "\n",
+        r#"{"t_ns":50000,"x":{"pos":0,"bits":16},"y":{"pos":65535,"bits":16}}"#,
+        "\n",
+        r#"{"t_ns":60000,"x":{"pos":0,"bits":16},"y":{"pos":65535,"bits":16}}"#,
+        "\n",
+    );
+    assert_eq!(dec.stdout, want);
 }
 
 #[test]
