@@ -700,6 +700,83 @@ fn xy2_status_words_both_ways() {
     }
 }
 
+/// The `laser gate:` timeline of the printout as (on, ms) pairs.
+fn gate_changes(stderr: &str) -> Vec<(bool, f64)> {
+    let line = stderr
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("laser gate: "))
+        .unwrap();
+    line.split(", ")
+        .map(|c| {
+            let (state, t) = c.split_once(" at ").unwrap();
+            (state == "on", t.trim_end_matches(" ms").parse().unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn xy3_head_backchannel_alarm_turns_the_gate_off() {
+    let d = dir("back");
+    generate(
+        &d,
+        "in",
+        &[
+            "--protocol",
+            "xy2",
+            "--pattern",
+            "circle",
+            "--frames",
+            "2000",
+        ],
+    );
+    // The head's backchannel as `generate` makes it: a cycle of status packets whose
+    // ERROR_STATE reports nothing at first, then an error code.
+    let packets: Vec<(u64, u8, Vec<u8>)> =
+        generate(&d, "back", &["--protocol", "xy3-back", "--frames", "10"])
+            .iter()
+            .map(|l| match serde_json::from_str::<BackRecord>(l).unwrap() {
+                BackRecord::Packet { t_ns, ty, payload } => (t_ns.unwrap(), ty, payload),
+                BackRecord::Error { .. } => panic!("generate made an error"),
+            })
+            .collect();
+    let (t_err, _, payload) = packets
+        .iter()
+        .find(|(_, ty, p)| *ty == 7 && p.iter().any(|&b| b != 0))
+        .unwrap();
+    // The packet is complete after its 3 + N bytes at 115200 baud.
+    let done_ms = (*t_err as f64 + (3 + payload.len()) as f64 * 10.0 / 115_200.0 * 1e9) / 1e6;
+    let o = bridge(
+        &d,
+        &config("xy2", "xy3", "[laser]\noff_on_head_alarm = true\n"),
+        "in.vcd",
+        &["--head-status", "back.vcd"],
+    );
+    assert_eq!(
+        counter(&o.stderr, "head status received:"),
+        packets.len() as u64,
+        "{}",
+        o.stderr
+    );
+    let gate = gate_changes(&o.stderr);
+    assert_eq!(gate.len(), 3, "{}", o.stderr);
+    assert!(gate[1].0 && !gate[2].0);
+    assert!(
+        gate[2].1 >= done_ms - 0.01 && gate[2].1 <= done_ms + 0.1,
+        "gate off at {} ms, the alarm arrived at {done_ms} ms",
+        gate[2].1
+    );
+    // The controller's STATUS level shows the fault from then on.
+    let level = read_vcd_file(
+        &d.join("out/controller-status.vcd"),
+        &["status"],
+        &NameMap::new(),
+    )
+    .unwrap();
+    let s = level.get("status").unwrap();
+    assert!(!s.level_at(((done_ms - 0.2) * 1e9) as u64));
+    assert!(s.level_at(((done_ms + 0.2) * 1e9) as u64));
+}
+
 #[test]
 fn controller_status_files_decode() {
     let d = dir("ctrl_status");
