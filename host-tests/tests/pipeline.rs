@@ -120,8 +120,13 @@ fn carried(c: &Config, stim: &Stimulus, p: &Pipeline) -> Vec<usize> {
             continue;
         }
         let got = raw(c, &s.frame);
+        // An axis the input frame did not carry (X of a command frame the head
+        // cannot take) holds its last value.
+        let fits = |e: &([Option<u32>; 3], Option<shared::model::Command>)| {
+            e.1 == got.1 && e.0.iter().zip(&got.0).all(|(e, g)| e.is_none() || e == g)
+        };
         let i = (from..exp.len())
-            .find(|&i| exp[i] == got)
+            .find(|&i| fits(&exp[i]))
             .unwrap_or_else(|| panic!("output {got:?} is no input frame at or after {from}"));
         out.push(i);
         from = i;
@@ -577,6 +582,228 @@ fn noise_bursts() {
             distinct.len() as u32 + k.skipped + lost >= (n - 20) as u32,
             "{label}: {} {k:?}",
             distinct.len()
+        );
+    }
+}
+
+/// The head's backchannel: an ERROR_STATE packet (with `alarms`) every `every_us`
+/// in `[from_us, to_us)`, through the head's `Sender` (SYNC first) and a UART.
+fn head_back(baud: u32, from_us: u64, to_us: u64, every_us: u64, alarms: Alarms) -> Vec<Timed> {
+    use shared::xy3::back::{neutral, Packet, Sender, SEND_BUF_LEN};
+    let mut st = shared::model::HeadStatus {
+        alarms,
+        ..Default::default()
+    };
+    st.error_codes[0] = Some(if alarms.any() { 1 } else { 0 });
+    let packet = Packet::ErrorState(neutral::error_codes_for(&st));
+    let mut sender = Sender::default();
+    let mut items = Vec::new();
+    for t in (from_us..to_us).step_by(every_us as usize) {
+        let mut out = [0u8; SEND_BUF_LEN];
+        let n = sender.send(t, &packet, &mut out).unwrap();
+        items.extend(stimulus::back_bytes(&out[..n], baud, t * 1_000_000).unwrap());
+    }
+    items
+}
+
+/// The head's HANS-100 STATUS line: velocity/alarm frames (code 65 + code 15) back
+/// to back in `[from_us, to_us)`.
+fn head_hans_status(from_us: u64, to_us: u64, alarms: Alarms, fs: u32) -> Vec<Timed> {
+    use shared::hans::{status_frame, DeviceExt, GalvoStatus};
+    let st = shared::model::HeadStatus {
+        alarms,
+        velocity: [Some(0); 3],
+        ..Default::default()
+    };
+    let galvo = GalvoStatus::velocity_from(&st);
+    let devices = DeviceExt::all_from(&st);
+    let frames: Vec<_> = (0..(to_us - from_us) / 10)
+        .map(|i| status_frame(&galvo, &devices[i as usize % devices.len()]).unwrap())
+        .collect();
+    stimulus::hans_status(&frames, from_us * 1_000_000, fs).unwrap()
+}
+
+/// An XY3-100 BACK_RATE command mid-stream: the bridge forwards it to an XY3-100
+/// head (and listens to the head at the new rate), or counts it as not carried,
+/// and in both cases switches its own controller-side backchannel, SYNC first.
+#[test]
+fn backchannel_rate_change_mid_stream() {
+    use shared::model::Command;
+    use shared::xy3::{back, BackRate};
+    for head in [Protocol::Xy3, Protocol::Xy2] {
+        let c = config(Protocol::Xy3, head, Timing::FreeRunning);
+        let t = GenTiming::default();
+        let n = 3000;
+        let mut sent = frames(&c, &t, n);
+        let code = shared::xy3::Command::BackRate(BackRate::B230400).code();
+        // A command frame carries the command on X in place of the position.
+        sent[1500].command = Some(Command::Xy3(code));
+        sent[1500].axes[0] = None;
+        let label = format!("XY3 -> {head:?}");
+        let (p, stim, view) = run(&c, &t, &sent, |_| {}, Vec::new(), 50_000);
+        assert_output_is_sent(&c, &p, &view, &label);
+        let _ = carried(&c, &stim, &p);
+        let k = p.bridge_counters();
+        let switch_ns = stim.sent[1500].last_bit_ps / 1000;
+        let out = p.controller_status();
+        assert_eq!(out.back_rates.len(), 1, "{label}");
+        let ch = out.back_rates[0];
+        assert_eq!(ch.value, BackRate::B230400);
+        assert!(
+            ch.t_ns >= switch_ns && ch.t_ns < switch_ns + 20_000,
+            "{label}: {ch:?}"
+        );
+        match head {
+            Protocol::Xy3 => {
+                assert_eq!(k.commands_forwarded, 1, "{label}: {k:?}");
+                assert_eq!(p.head_back_rate(), BackRate::B230400);
+                let cmds: Vec<_> = view.frames.iter().filter_map(|d| d.frame.command).collect();
+                assert_eq!(cmds, [Command::Xy3(code)], "{label}");
+            }
+            _ => {
+                assert_eq!(k.commands_not_carried, 1, "{label}: {k:?}");
+                assert_eq!(k.commands_forwarded, 0, "{label}: {k:?}");
+            }
+        }
+        // The controller's UART: decode the line in two windows, each at its rate.
+        let line = out.back_signal();
+        // Bytes already queued finish at the old rate; the first byte at the new
+        // rate starts after the switch.
+        let cut = out
+            .back
+            .iter()
+            .find(|b| b.baud == 230_400)
+            .unwrap()
+            .start_ps;
+        assert!(cut >= ch.t_ns * 1000, "{label}");
+        assert!(out
+            .back
+            .iter()
+            .all(|b| (b.start_ps < cut) == (b.baud == 115_200)));
+        let window = |from: Ps, to: Ps| {
+            let ch = line
+                .changes()
+                .iter()
+                .copied()
+                .filter(|&(t, _)| t >= from && t < to);
+            host_tests::wave::Signal::from_changes("UART", true, ch).unwrap()
+        };
+        let before = host_tests::line::uart::uart_decode(&window(0, cut), 115_200.0).unwrap();
+        let after = host_tests::line::uart::uart_decode(&window(cut, Ps::MAX), 230_400.0).unwrap();
+        assert!(
+            before.len() > 10 && after.len() > 5,
+            "{label}: {} {}",
+            before.len(),
+            after.len()
+        );
+        let bad: Vec<_> = before
+            .iter()
+            .chain(&after)
+            .filter(|f| f.framing_error)
+            .collect();
+        assert!(bad.is_empty(), "{label}: {bad:?} cut {cut}");
+        let bytes: Vec<u8> = before.iter().chain(&after).map(|f| f.value).collect();
+        assert_eq!(bytes, out.back_bytes(), "{label}");
+        // At the new rate the first packet is a SYNC, and every packet parses.
+        let mut parser = back::Parser::new();
+        let mut types = Vec::new();
+        let mut errors = 0;
+        for f in &after {
+            match parser.push(f.value) {
+                Some(back::Event::Packet(raw)) => types.push(raw.ty),
+                Some(back::Event::Resynced { .. }) => types.push(back::wire::ty::SYNC),
+                Some(back::Event::LostSync { .. }) => errors += 1,
+                None => {}
+            }
+        }
+        assert_eq!(errors, 0, "{label}");
+        assert_eq!(
+            types.first(),
+            Some(&back::wire::ty::SYNC),
+            "{label}: {types:?}"
+        );
+        assert!(types.len() >= 2, "{label}: {types:?}");
+    }
+}
+
+/// The head's status stops for longer than `failsafe.status_timeout_us`: reported
+/// (STATUS_LOST towards the controller, gate off), and cleared when it returns.
+#[test]
+fn head_status_disappears_and_returns() {
+    for (ctrl, head) in [
+        (Protocol::Xy2, Protocol::Xy3),
+        (Protocol::Xy3, Protocol::Hans),
+    ] {
+        let mut c = config(ctrl, head, Timing::FreeRunning);
+        c.failsafe.status_timeout_us = 5_000;
+        let t = GenTiming::default();
+        let n = 2500;
+        let sent = frames(&c, &t, n);
+        let label = format!("{ctrl:?} -> {head:?}");
+        // Status from 0.1 to 8 ms, silence, back from 18 ms.
+        let status: Vec<Timed> = match head {
+            Protocol::Xy3 => [(100, 8_000), (18_000, 25_000)]
+                .into_iter()
+                .flat_map(|(a, b)| head_back(115_200, a, b, 1_000, Alarms::NONE))
+                .collect(),
+            _ => [(100, 8_000), (18_000, 25_000)]
+                .into_iter()
+                .flat_map(|(a, b)| {
+                    head_hans_status(a, b, Alarms::NONE, Options::default().hans_status_sample_hz)
+                })
+                .collect(),
+        };
+        let status_times: Vec<u64> = status.iter().map(|s| s.t_ns).collect();
+        let (p, _stim, view) = run(&c, &t, &sent, |_| {}, status, 50_000);
+        assert_output_is_sent(&c, &p, &view, &label);
+        let k = p.bridge_counters();
+        assert_eq!(k.status_losses, 1, "{label}: {k:?}");
+        assert_eq!(k.input_losses, 0, "{label}: {k:?}");
+        assert!(
+            p.counters().status_items > 10,
+            "{label}: {:?}",
+            p.counters()
+        );
+        // Each start of the status stream costs a resync (the backchannel parser's
+        // first sync counts too), each stop at most a cut frame.
+        assert!(
+            p.counters().status_faults <= 4,
+            "{label}: {:?}",
+            p.counters()
+        );
+        // The gate: on after start-up, off at last status + timeout, on again when
+        // the status is back.
+        // The last status item before the silence (HANS-100: the stream's end; the
+        // sampler's words run on for 2 us of idle line).
+        let last_status = match head {
+            Protocol::Hans => 8_000_000,
+            _ => status_times
+                .iter()
+                .filter(|&&t| t < 9_000_000)
+                .max()
+                .copied()
+                .unwrap(),
+        };
+        let gate: Vec<(u64, bool)> = p.gate().iter().map(|c| (c.t_ns, c.value)).collect();
+        assert_eq!(gate.len(), 4, "{label}: {gate:?}");
+        let lost_at = last_status + 5_000_000;
+        assert!(
+            gate[2].0 + 50_000 >= lost_at && gate[2].0 <= lost_at + 20_000 && !gate[2].1,
+            "{label}: {gate:?} {last_status}"
+        );
+        assert!(
+            gate[3].0 >= 18_000_000 && gate[3].0 <= 18_400_000,
+            "{label}: {gate:?}"
+        );
+        let lost = controller_alarms(&c, &p, lost_at + 20_000, 18_000_000);
+        let expect = match ctrl {
+            Protocol::Xy2 => Alarms::INPUT_LOST, // the level says only "fault"
+            _ => Alarms::COMMUNICATION,
+        };
+        assert!(lost.contains(expect), "{label}: {lost:?}");
+        assert!(
+            !controller_alarms(&c, &p, 19_000_000, 24_000_000).any(),
+            "{label}"
         );
     }
 }

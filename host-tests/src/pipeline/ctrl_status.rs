@@ -143,7 +143,9 @@ impl CtrlStatus {
                     ring.step(k, Some(frame));
                 }
             }
-            Protocol::Xy3 if now >= self.back_free_ns => {
+            // The UART starts with the first step after power-up (time 0 itself is
+            // the line's initial level).
+            Protocol::Xy3 if now >= self.back_free_ns && now > 0 => {
                 let mut buf = [0u8; SEND_BUF_LEN];
                 let n = bridge.xy3_back_poll(now, &mut buf).unwrap_or(0);
                 let byte_ns = UART_BITS * 1_000_000_000 / u64::from(self.baud.max(1));

@@ -466,8 +466,8 @@ pub fn back_bytes(bytes: &[u8], baud: u32, t0_ps: Ps) -> Result<Vec<Timed>, Pipe
         .collect())
 }
 
-/// Head HANS-100 STATUS: `frames` back to back from `t0_ps`, sampled at `fs_hz`;
-/// one item per `u16` word.
+/// Head HANS-100 STATUS: `frames` back to back from `t0_ps`, sampled at `fs_hz`
+/// from `t0_ps` on; one item per `u16` word.
 pub fn hans_status(
     frames: &[hans::Frame],
     t0_ps: Ps,
@@ -486,7 +486,7 @@ pub fn hans_status(
     let fs = f64::from(fs_hz);
     let words = Oversampler {
         fs_hz: fs,
-        start_ps: 0.0,
+        start_ps: t0_ps as f64,
     }
     .sample(&w, &[roles::STATUS], end + 2_000_000)
     .map_err(err)?;
@@ -500,7 +500,7 @@ pub fn hans_status(
     {
         for (h, half) in [(word >> 16) as u16, word as u16].into_iter().enumerate() {
             let j = 2 * i + h;
-            let last = (16 * (j + 1) - 1) as f64 * PS_PER_S / fs;
+            let last = t0_ps as f64 + (16 * (j + 1) - 1) as f64 * PS_PER_S / fs;
             out.push(Timed {
                 t_ns: ns_ceil(last.round() as Ps),
                 buffers: Buffers::HansStatus(vec![half]),
@@ -535,7 +535,11 @@ pub fn frame(
     let pos =
         |v: u32, bits: u8| shared::model::Position::from_raw(v & ((1u32 << bits) - 1), bits).ok();
     let mut f = ForwardFrame::default();
-    f.axes[0] = pos(x, w[0]);
+    f.axes[0] = if command.is_some() {
+        None
+    } else {
+        pos(x, w[0])
+    };
     f.axes[1] = pos(y, w[1]);
     if config.z.source == ZSource::Input || config.controller.protocol == Protocol::Hans {
         f.axes[2] = pos(z, w[2]);
