@@ -807,3 +807,67 @@ fn head_status_disappears_and_returns() {
         );
     }
 }
+
+/// The task graph (async tasks over `embassy-sync` channels on a simulated clock)
+/// gives exactly what the synchronous pipeline gives for the same buffers.
+fn same_as_tasks(c: &Config, items: &[Timed], end_ns: u64, label: &str) {
+    let mut p = Pipeline::new(c, Options::default()).unwrap();
+    stimulus::run(&mut p, items, end_ns).unwrap();
+    let r = host_tests::pipeline::tasks::run(c, Options::default(), items, end_ns).unwrap();
+    let k = &r.core;
+    assert_eq!(r.stalls, 0, "{label}");
+    assert!(
+        r.checks as u64 >= end_ns / 50_000 / 2,
+        "{label}: {} checks",
+        r.checks
+    );
+    assert_eq!(k.now_ns(), p.now_ns(), "{label}");
+    assert_eq!(k.head_output(), p.head_output(), "{label}");
+    assert_eq!(k.sent(), p.sent(), "{label}");
+    assert_eq!(k.controller_status(), p.controller_status(), "{label}");
+    assert_eq!(k.states(), p.states(), "{label}");
+    assert_eq!(k.gate(), p.gate(), "{label}");
+    assert_eq!(k.bridge_counters(), p.bridge_counters(), "{label}");
+    assert_eq!(k.counters(), p.counters(), "{label}");
+    assert!(!p.sent().is_empty(), "{label}");
+}
+
+#[test]
+fn task_graph_matches_the_synchronous_core() {
+    let t = GenTiming::default();
+    for ctrl in PROTOCOLS {
+        for head in PROTOCOLS {
+            for timing in [Timing::FreeRunning, Timing::Slaved] {
+                if head == Protocol::Hans && timing == Timing::Slaved {
+                    continue;
+                }
+                let c = config(ctrl, head, timing);
+                let sent = frames(&c, &t, 120);
+                let mut stim = stimulus::controller_signal(&c, &sent, &t).unwrap();
+                // A clock / line gap makes the fail-safe path run too.
+                let line = if ctrl == Protocol::Hans {
+                    roles::HANS_CHANNELS[0]
+                } else {
+                    roles::CLK
+                };
+                impair::gap(&mut stim.wave, line, 600_000_000, 800_000_000, false).unwrap();
+                let items =
+                    stimulus::capture(&c, &stim.wave, Options::default().hans_sample_hz, 0.2)
+                        .unwrap();
+                let items = stimulus::chunk(items, 2_000);
+                let status: Vec<Timed> = match head {
+                    Protocol::Xy2 => stimulus::level_samples(1_500_000, 10_000, |t| t > 900_000),
+                    Protocol::Xy3 => head_back(115_200, 100, 1_200, 200, Alarms::TEMPERATURE),
+                    Protocol::Hans => head_hans_status(100, 1_000, Alarms::POWER, 40_000_000),
+                };
+                let items = stimulus::merge(vec![items, status]);
+                same_as_tasks(
+                    &c,
+                    &items,
+                    1_600_000,
+                    &format!("{ctrl:?} -> {head:?} {timing:?}"),
+                );
+            }
+        }
+    }
+}

@@ -50,6 +50,7 @@ mod head_status;
 mod input;
 mod output;
 pub mod stimulus;
+pub mod tasks;
 
 use std::fmt;
 

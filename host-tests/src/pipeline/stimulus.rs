@@ -288,22 +288,48 @@ impl Buffers {
         Ok(())
     }
 
-    /// Hands these buffers to the pipeline at `t_ns`.
-    pub fn feed(&self, p: &mut Pipeline, t_ns: u64) -> Result<(), PipelineError> {
+    /// Head-side status buffers (as opposed to the controller's lines).
+    pub fn is_status(&self) -> bool {
+        matches!(
+            self,
+            Buffers::Level(_) | Buffers::Back(_) | Buffers::HansStatus(_)
+        )
+    }
+
+    /// Runs `f` on the controller-side view of these buffers (`None` for status
+    /// buffers).
+    pub fn controller_input<R>(&self, f: impl FnOnce(ControllerInput<'_>) -> R) -> Option<R> {
         match self {
-            Buffers::Xy2(s) => p.feed(t_ns, ControllerInput::Xy2(s)),
+            Buffers::Xy2(s) => Some(f(ControllerInput::Xy2(s))),
             Buffers::Xy3 { lines, ends } => {
                 let l: Vec<&[u8]> = lines.iter().map(Vec::as_slice).collect();
-                p.feed(t_ns, ControllerInput::Xy3 { lines: &l, ends })
+                Some(f(ControllerInput::Xy3 { lines: &l, ends }))
             }
-            Buffers::Hans(r) => p.feed(
-                t_ns,
-                ControllerInput::Hans([&r[0], &r[1], &r[2], &r[3], &r[4]]),
-            ),
-            Buffers::Level(s) => p.feed_status(t_ns, HeadStatusInput::Xy2Level(s)),
-            Buffers::Back(b) => p.feed_status(t_ns, HeadStatusInput::Xy3Back(b)),
-            Buffers::HansStatus(w) => p.feed_status(t_ns, HeadStatusInput::HansStatus(w)),
+            Buffers::Hans(r) => Some(f(ControllerInput::Hans([
+                &r[0], &r[1], &r[2], &r[3], &r[4],
+            ]))),
+            _ => None,
         }
+    }
+
+    /// Runs `f` on the head-status view of these buffers (`None` for controller
+    /// buffers).
+    pub fn status_input<R>(&self, f: impl FnOnce(HeadStatusInput<'_>) -> R) -> Option<R> {
+        match self {
+            Buffers::Level(s) => Some(f(HeadStatusInput::Xy2Level(s))),
+            Buffers::Back(b) => Some(f(HeadStatusInput::Xy3Back(b))),
+            Buffers::HansStatus(w) => Some(f(HeadStatusInput::HansStatus(w))),
+            _ => None,
+        }
+    }
+
+    /// Hands these buffers to the pipeline at `t_ns`.
+    pub fn feed(&self, p: &mut Pipeline, t_ns: u64) -> Result<(), PipelineError> {
+        if let Some(r) = self.controller_input(|c| p.feed(t_ns, c)) {
+            return r;
+        }
+        self.status_input(|s| p.feed_status(t_ns, s))
+            .unwrap_or(Ok(()))
     }
 }
 
