@@ -871,3 +871,32 @@ fn task_graph_matches_the_synchronous_core() {
         }
     }
 }
+
+/// Added latency (simulated time, so exact): slaved output within the modelled
+/// 1 us turnaround plus the receiver's own delay; free-running output one slot
+/// ahead (two for the HANS-100 ring) plus up to one slot of phase.
+#[test]
+fn latency_bounds() {
+    use host_tests::pipeline::latency::{config, measure};
+    for ctrl in PROTOCOLS {
+        for head in PROTOCOLS {
+            let lead = if head == Protocol::Hans { 2.0 } else { 1.0 };
+            let l = measure(&config(ctrl, head, Timing::FreeRunning), 4, 30).unwrap();
+            let label = format!("{ctrl:?} -> {head:?}: {l:?}");
+            assert!(l.frames >= 60, "{label}");
+            assert!(l.min_ns >= lead * 10_000.0, "{label}");
+            assert!(l.max_ns < (lead + 1.0) * 10_000.0 + 1_000.0, "{label}");
+            assert!(
+                l.max_ns - l.min_ns >= 7_000.0,
+                "{label}: the phase sweep shows"
+            );
+            if head != Protocol::Hans {
+                let s = measure(&config(ctrl, head, Timing::Slaved), 2, 30).unwrap();
+                assert!(
+                    s.min_ns >= 1_000.0 && s.max_ns < 2_000.0,
+                    "{ctrl:?} -> {head:?}: {s:?}"
+                );
+            }
+        }
+    }
+}

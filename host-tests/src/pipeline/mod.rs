@@ -48,6 +48,7 @@ mod core;
 mod ctrl_status;
 mod head_status;
 mod input;
+pub mod latency;
 mod output;
 pub mod stimulus;
 pub mod tasks;
