@@ -254,6 +254,18 @@ fn controller_alarms(c: &Config, p: &Pipeline, from_ns: u64, to_ns: u64) -> Alar
     let out = p.controller_status();
     let mut a = Alarms::NONE;
     match c.controller.protocol {
+        Protocol::Xy2 if c.controller.xy2.status == shared::bridge::StatusForm::Word => {
+            let link = shared::xy2::LinkConfig {
+                mode: c.controller.xy2.mode,
+                parity: c.controller.xy2.parity,
+            };
+            for &(t, w) in &out.words {
+                if (from_ns..to_ns).contains(&t) {
+                    let word = shared::xy2::StatusWord::from_frame(w, &link).unwrap();
+                    a = a.union(word.alarms());
+                }
+            }
+        }
         Protocol::Xy2 => {
             let sig = out.level_signal();
             let level = shared::xy2::StatusLevel {
@@ -598,10 +610,15 @@ fn head_back(baud: u32, from_us: u64, to_us: u64, every_us: u64, alarms: Alarms)
     let packet = Packet::ErrorState(neutral::error_codes_for(&st));
     let mut sender = Sender::default();
     let mut items = Vec::new();
+    let byte_us = 10 * 1_000_000 / u64::from(baud) + 1;
+    let mut free_us = 0;
     for t in (from_us..to_us).step_by(every_us as usize) {
+        // The head's UART sends one packet after the other.
+        let t = t.max(free_us);
         let mut out = [0u8; SEND_BUF_LEN];
         let n = sender.send(t, &packet, &mut out).unwrap();
         items.extend(stimulus::back_bytes(&out[..n], baud, t * 1_000_000).unwrap());
+        free_us = t + n as u64 * byte_us;
     }
     items
 }
@@ -857,7 +874,7 @@ fn task_graph_matches_the_synchronous_core() {
                 let items = stimulus::chunk(items, 2_000);
                 let status: Vec<Timed> = match head {
                     Protocol::Xy2 => stimulus::level_samples(1_500_000, 10_000, |t| t > 900_000),
-                    Protocol::Xy3 => head_back(115_200, 100, 1_200, 200, Alarms::TEMPERATURE),
+                    Protocol::Xy3 => head_back(115_200, 100, 1_200, 500, Alarms::TEMPERATURE),
                     Protocol::Hans => head_hans_status(100, 1_000, Alarms::POWER, 40_000_000),
                 };
                 let items = stimulus::merge(vec![items, status]);
@@ -897,6 +914,91 @@ fn latency_bounds() {
                     "{ctrl:?} -> {head:?}: {s:?}"
                 );
             }
+        }
+    }
+}
+
+/// Head alarms reach the controller in its protocol, for every head status form
+/// and every controller status form, decoded on both sides with `shared`'s
+/// receivers; the laser gate drops with the head alarm.
+#[test]
+fn head_alarm_reaches_the_controller() {
+    use shared::bridge::StatusForm;
+    use shared::xy2::StatusWord;
+    let forms = [
+        (Protocol::Xy2, StatusForm::Level),
+        (Protocol::Xy2, StatusForm::Word),
+        (Protocol::Xy3, StatusForm::Level),
+        (Protocol::Hans, StatusForm::Level),
+    ];
+    let alarm_at: u64 = 2_000_000;
+    for (head, hform) in forms {
+        for (ctrl, cform) in forms {
+            let mut c = config(ctrl, head, Timing::FreeRunning);
+            c.head.xy2.status = hform;
+            c.controller.xy2.status = cform;
+            let label = format!("{head:?} {hform:?} -> {ctrl:?} {cform:?}");
+            let t = GenTiming::default();
+            let sent = frames(&c, &t, 400);
+            let end = 4_000_000;
+            let status: Vec<Timed> = match (head, hform) {
+                (Protocol::Xy2, StatusForm::Level) => {
+                    stimulus::level_samples(end, 10_000, |t| t >= alarm_at)
+                }
+                (Protocol::Xy2, _) => {
+                    let link = shared::xy2::LinkConfig {
+                        mode: c.head.xy2.mode,
+                        parity: c.head.xy2.parity,
+                    };
+                    let ok = stimulus::status_words(StatusWord::ALL_OK, &link, 20, 400);
+                    let hot = StatusWord::from_alarms(Alarms::TEMPERATURE);
+                    let bad = stimulus::status_words(hot, &link, 20, 400);
+                    ok.into_iter()
+                        .zip(bad)
+                        .map(|(o, b)| if o.t_ns <= alarm_at { o } else { b })
+                        .collect()
+                }
+                (Protocol::Xy3, _) => {
+                    let mut v = head_back(115_200, 100, 2_000, 500, Alarms::NONE);
+                    v.extend(head_back(115_200, 2_000, 4_000, 500, Alarms::TEMPERATURE));
+                    v
+                }
+                _ => {
+                    let fs = Options::default().hans_status_sample_hz;
+                    let mut v = head_hans_status(0, 2_000, Alarms::NONE, fs);
+                    v.retain(|x| x.t_ns < alarm_at);
+                    v.extend(head_hans_status(2_000, 4_000, Alarms::TEMPERATURE, fs));
+                    v
+                }
+            };
+            let (p, _stim, view) = run(&c, &t, &sent, |_| {}, status, 50_000);
+            assert_output_is_sent(&c, &p, &view, &label);
+            let k = p.counters();
+            assert!(k.status_items > 5, "{label}: {k:?}");
+            // (An XY3-100 controller's UART needs ~1 ms for the first packets.)
+            let before = controller_alarms(&c, &p, 1_200_000, alarm_at);
+            assert!(!before.any(), "{label}: {before:?} before the alarm");
+            let after = controller_alarms(&c, &p, alarm_at, end);
+            // What each path can say: an XY2 level only "fault" (electrical on the
+            // way in, a fault level on the way out).
+            let want = match (head, hform, ctrl, cform) {
+                (_, _, Protocol::Xy2, StatusForm::Level) => Alarms::INPUT_LOST,
+                (Protocol::Xy2, StatusForm::Level, Protocol::Xy2, _) => Alarms::POWER,
+                (Protocol::Xy2, StatusForm::Level, Protocol::Hans, _) => Alarms::POWER,
+                (Protocol::Xy2, StatusForm::Level, _, _) => Alarms::ELECTRICAL,
+                _ => Alarms::TEMPERATURE,
+            };
+            assert!(after.contains(want), "{label}: {after:?}, want {want:?}");
+            // The gate: on while running with a healthy head, off with the alarm.
+            let gate: Vec<(u64, bool)> = p.gate().iter().map(|g| (g.t_ns, g.value)).collect();
+            assert_eq!(gate.len(), 3, "{label}: {gate:?}");
+            assert!(gate[1].1 && !gate[2].1, "{label}: {gate:?}");
+            // (A backchannel head needs ~0.6 ms at 115200 baud for SYNC + packet.)
+            assert!(
+                gate[2].0 >= alarm_at && gate[2].0 < alarm_at + 700_000,
+                "{label}: {gate:?}"
+            );
+            assert_eq!(p.bridge().state(), LinkState::Running, "{label}");
         }
     }
 }

@@ -244,6 +244,8 @@ pub enum Buffers {
     Hans([Vec<u16>; 5]),
     /// XY2-100 STATUS level samples.
     Level(Vec<bool>),
+    /// XY2-100 STATUS word samples (one per output bit).
+    Word(Vec<u16>),
     /// XY3-100 backchannel bytes from the head.
     Back(Vec<u8>),
     /// HANS-100 STATUS ring words.
@@ -281,6 +283,7 @@ impl Buffers {
                 }
             }
             (Buffers::Level(a), Buffers::Level(b)) => a.extend(b),
+            (Buffers::Word(a), Buffers::Word(b)) => a.extend(b),
             (Buffers::Back(a), Buffers::Back(b)) => a.extend(b),
             (Buffers::HansStatus(a), Buffers::HansStatus(b)) => a.extend(b),
             (_, other) => return Err(other),
@@ -292,7 +295,7 @@ impl Buffers {
     pub fn is_status(&self) -> bool {
         matches!(
             self,
-            Buffers::Level(_) | Buffers::Back(_) | Buffers::HansStatus(_)
+            Buffers::Level(_) | Buffers::Word(_) | Buffers::Back(_) | Buffers::HansStatus(_)
         )
     }
 
@@ -317,6 +320,7 @@ impl Buffers {
     pub fn status_input<R>(&self, f: impl FnOnce(HeadStatusInput<'_>) -> R) -> Option<R> {
         match self {
             Buffers::Level(s) => Some(f(HeadStatusInput::Xy2Level(s))),
+            Buffers::Word(s) => Some(f(HeadStatusInput::Xy2Word(s))),
             Buffers::Back(b) => Some(f(HeadStatusInput::Xy3Back(b))),
             Buffers::HansStatus(w) => Some(f(HeadStatusInput::HansStatus(w))),
             _ => None,
@@ -585,4 +589,46 @@ pub fn controller_widths(config: &Config, xy3_size: FrameSize) -> [u8; 3] {
         Protocol::Xy3 => [xy3_size.position_bits(); 3],
         Protocol::Hans => [20, 20, 16],
     }
+}
+
+/// XY2-100 head STATUS word: the head answers every output frame period with the
+/// status frame of `word` (the `shared` STATUS transmitter's levels, pin 0), read
+/// one sample per output bit with the frame at offset 1; one item per period, at
+/// the period's end. `samples_per_period` = output ticks per frame / 2.
+pub fn status_words(
+    word: xy2::StatusWord,
+    link: &xy2::LinkConfig,
+    samples_per_period: usize,
+    periods: usize,
+) -> Vec<Timed> {
+    let mut bsrr = [0u32; 20];
+    let out = match xy2::status_line::StatusOut::new(
+        0,
+        xy2::StatusLevel {
+            polarity: xy2::Polarity::LowIsOk,
+        },
+    ) {
+        Ok(o) => o,
+        Err(_) => return Vec::new(),
+    };
+    out.word_frame(word, link, &mut bsrr);
+    // Set (low half) = high level.
+    let bits: Vec<u16> = bsrr.iter().map(|w| u16::from(w & 1 != 0)).collect();
+    let mut samples = vec![0u16; samples_per_period * periods + 1];
+    for p in 0..periods {
+        for (k, &b) in bits.iter().enumerate() {
+            if let Some(s) = samples.get_mut(p * samples_per_period + 1 + k) {
+                *s = b;
+            }
+        }
+    }
+    let period_ns = samples_per_period as u64 * 500;
+    samples
+        .chunks(samples_per_period)
+        .enumerate()
+        .map(|(p, c)| Timed {
+            t_ns: (p as u64 + 1) * period_ns,
+            buffers: Buffers::Word(c.to_vec()),
+        })
+        .collect()
 }
