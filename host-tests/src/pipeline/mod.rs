@@ -12,7 +12,8 @@
 //! head status lines
 //!   -> Pipeline::feed_status(now_ns, HeadStatusInput::{Xy2Level, Xy2Word, Xy3Back,
 //!      HansStatus}) -> debouncer / status-word receiver / backchannel parser /
-//!      HANS STATUS receiver -> Bridge::head_status_mut + status_seen
+//!      HANS STATUS receiver -> the head's HeadStatus, copied into the bridge
+//!      (Bridge::head_status_mut) + status_seen, as the firmware's status tasks do
 //!   -> controller status (every 10 us): XY2 STATUS level changes, XY2 status words
 //!      (one per controller frame), XY3 backchannel bytes (Bridge::xy3_back_poll, a
 //!      UART at the controller-side rate), HANS STATUS frames (a second hans ring)
@@ -42,6 +43,16 @@
 //! The record of every frame sent ([`SentFrame`]), the laser gate and link state
 //! changes are kept for tests; [`HeadOutput::to_waveform`] and the
 //! [`ControllerStatus`] helpers turn the buffers into waveforms (`crate::line`).
+//!
+//! # Parts
+//! - [`Pipeline`] = controller-side receiver + head-side status receiver + [`Core`]
+//!   (bridge, output clock and encoder, controller-side status);
+//! - [`tasks`]: the same parts as the firmware's task graph (embassy-sync channels,
+//!   simulated clock), tested to give the same output;
+//! - [`stimulus`]: controller signals from `shared`'s transmitters, waveforms ->
+//!   time-stamped DMA buffers, head status stimuli;
+//! - [`check`]: independent decoding of the head-side output, expected values;
+//! - [`latency`]: the added latency per pairing (bin `pipeline-latency`).
 
 pub mod check;
 mod core;
