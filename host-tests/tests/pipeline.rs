@@ -120,8 +120,13 @@ fn carried(c: &Config, stim: &Stimulus, p: &Pipeline) -> Vec<usize> {
             continue;
         }
         let got = raw(c, &s.frame);
+        // An axis the input frame did not carry (X of a command frame the head
+        // cannot take) holds its last value.
+        let fits = |e: &([Option<u32>; 3], Option<shared::model::Command>)| {
+            e.1 == got.1 && e.0.iter().zip(&got.0).all(|(e, g)| e.is_none() || e == g)
+        };
         let i = (from..exp.len())
-            .find(|&i| exp[i] == got)
+            .find(|&i| fits(&exp[i]))
             .unwrap_or_else(|| panic!("output {got:?} is no input frame at or after {from}"));
         out.push(i);
         from = i;
@@ -249,6 +254,18 @@ fn controller_alarms(c: &Config, p: &Pipeline, from_ns: u64, to_ns: u64) -> Alar
     let out = p.controller_status();
     let mut a = Alarms::NONE;
     match c.controller.protocol {
+        Protocol::Xy2 if c.controller.xy2.status == shared::bridge::StatusForm::Word => {
+            let link = shared::xy2::LinkConfig {
+                mode: c.controller.xy2.mode,
+                parity: c.controller.xy2.parity,
+            };
+            for &(t, w) in &out.words {
+                if (from_ns..to_ns).contains(&t) {
+                    let word = shared::xy2::StatusWord::from_frame(w, &link).unwrap();
+                    a = a.union(word.alarms());
+                }
+            }
+        }
         Protocol::Xy2 => {
             let sig = out.level_signal();
             let level = shared::xy2::StatusLevel {
@@ -578,5 +595,410 @@ fn noise_bursts() {
             "{label}: {} {k:?}",
             distinct.len()
         );
+    }
+}
+
+/// The head's backchannel: an ERROR_STATE packet (with `alarms`) every `every_us`
+/// in `[from_us, to_us)`, through the head's `Sender` (SYNC first) and a UART.
+fn head_back(baud: u32, from_us: u64, to_us: u64, every_us: u64, alarms: Alarms) -> Vec<Timed> {
+    use shared::xy3::back::{neutral, Packet, Sender, SEND_BUF_LEN};
+    let mut st = shared::model::HeadStatus {
+        alarms,
+        ..Default::default()
+    };
+    st.error_codes[0] = Some(if alarms.any() { 1 } else { 0 });
+    let packet = Packet::ErrorState(neutral::error_codes_for(&st));
+    let mut sender = Sender::default();
+    let mut items = Vec::new();
+    let byte_us = 10 * 1_000_000 / u64::from(baud) + 1;
+    let mut free_us = 0;
+    for t in (from_us..to_us).step_by(every_us as usize) {
+        // The head's UART sends one packet after the other.
+        let t = t.max(free_us);
+        let mut out = [0u8; SEND_BUF_LEN];
+        let n = sender.send(t, &packet, &mut out).unwrap();
+        items.extend(stimulus::back_bytes(&out[..n], baud, t * 1_000_000).unwrap());
+        free_us = t + n as u64 * byte_us;
+    }
+    items
+}
+
+/// The head's HANS-100 STATUS line: velocity/alarm frames (code 65 + code 15) back
+/// to back in `[from_us, to_us)`.
+fn head_hans_status(from_us: u64, to_us: u64, alarms: Alarms, fs: u32) -> Vec<Timed> {
+    use shared::hans::{status_frame, DeviceExt, GalvoStatus};
+    let st = shared::model::HeadStatus {
+        alarms,
+        velocity: [Some(0); 3],
+        ..Default::default()
+    };
+    let galvo = GalvoStatus::velocity_from(&st);
+    let devices = DeviceExt::all_from(&st);
+    let frames: Vec<_> = (0..(to_us - from_us) / 10)
+        .map(|i| status_frame(&galvo, &devices[i as usize % devices.len()]).unwrap())
+        .collect();
+    stimulus::hans_status(&frames, from_us * 1_000_000, fs).unwrap()
+}
+
+/// An XY3-100 BACK_RATE command mid-stream: the bridge forwards it to an XY3-100
+/// head (and listens to the head at the new rate), or counts it as not carried,
+/// and in both cases switches its own controller-side backchannel, SYNC first.
+#[test]
+fn backchannel_rate_change_mid_stream() {
+    use shared::model::Command;
+    use shared::xy3::{back, BackRate};
+    for head in [Protocol::Xy3, Protocol::Xy2] {
+        let c = config(Protocol::Xy3, head, Timing::FreeRunning);
+        let t = GenTiming::default();
+        let n = 3000;
+        let mut sent = frames(&c, &t, n);
+        let code = shared::xy3::Command::BackRate(BackRate::B230400).code();
+        // A command frame carries the command on X in place of the position.
+        sent[1500].command = Some(Command::Xy3(code));
+        sent[1500].axes[0] = None;
+        let label = format!("XY3 -> {head:?}");
+        let (p, stim, view) = run(&c, &t, &sent, |_| {}, Vec::new(), 50_000);
+        assert_output_is_sent(&c, &p, &view, &label);
+        let _ = carried(&c, &stim, &p);
+        let k = p.bridge_counters();
+        let switch_ns = stim.sent[1500].last_bit_ps / 1000;
+        let out = p.controller_status();
+        assert_eq!(out.back_rates.len(), 1, "{label}");
+        let ch = out.back_rates[0];
+        assert_eq!(ch.value, BackRate::B230400);
+        assert!(
+            ch.t_ns >= switch_ns && ch.t_ns < switch_ns + 20_000,
+            "{label}: {ch:?}"
+        );
+        match head {
+            Protocol::Xy3 => {
+                assert_eq!(k.commands_forwarded, 1, "{label}: {k:?}");
+                assert_eq!(p.head_back_rate(), BackRate::B230400);
+                let cmds: Vec<_> = view.frames.iter().filter_map(|d| d.frame.command).collect();
+                assert_eq!(cmds, [Command::Xy3(code)], "{label}");
+            }
+            _ => {
+                assert_eq!(k.commands_not_carried, 1, "{label}: {k:?}");
+                assert_eq!(k.commands_forwarded, 0, "{label}: {k:?}");
+            }
+        }
+        // The controller's UART: decode the line in two windows, each at its rate.
+        let line = out.back_signal();
+        // Bytes already queued finish at the old rate; the first byte at the new
+        // rate starts after the switch.
+        let cut = out
+            .back
+            .iter()
+            .find(|b| b.baud == 230_400)
+            .unwrap()
+            .start_ps;
+        assert!(cut >= ch.t_ns * 1000, "{label}");
+        assert!(out
+            .back
+            .iter()
+            .all(|b| (b.start_ps < cut) == (b.baud == 115_200)));
+        let window = |from: Ps, to: Ps| {
+            let ch = line
+                .changes()
+                .iter()
+                .copied()
+                .filter(|&(t, _)| t >= from && t < to);
+            host_tests::wave::Signal::from_changes("UART", true, ch).unwrap()
+        };
+        let before = host_tests::line::uart::uart_decode(&window(0, cut), 115_200.0).unwrap();
+        let after = host_tests::line::uart::uart_decode(&window(cut, Ps::MAX), 230_400.0).unwrap();
+        assert!(
+            before.len() > 10 && after.len() > 5,
+            "{label}: {} {}",
+            before.len(),
+            after.len()
+        );
+        let bad: Vec<_> = before
+            .iter()
+            .chain(&after)
+            .filter(|f| f.framing_error)
+            .collect();
+        assert!(bad.is_empty(), "{label}: {bad:?} cut {cut}");
+        let bytes: Vec<u8> = before.iter().chain(&after).map(|f| f.value).collect();
+        assert_eq!(bytes, out.back_bytes(), "{label}");
+        // At the new rate the first packet is a SYNC, and every packet parses.
+        let mut parser = back::Parser::new();
+        let mut types = Vec::new();
+        let mut errors = 0;
+        for f in &after {
+            match parser.push(f.value) {
+                Some(back::Event::Packet(raw)) => types.push(raw.ty),
+                Some(back::Event::Resynced { .. }) => types.push(back::wire::ty::SYNC),
+                Some(back::Event::LostSync { .. }) => errors += 1,
+                None => {}
+            }
+        }
+        assert_eq!(errors, 0, "{label}");
+        assert_eq!(
+            types.first(),
+            Some(&back::wire::ty::SYNC),
+            "{label}: {types:?}"
+        );
+        assert!(types.len() >= 2, "{label}: {types:?}");
+    }
+}
+
+/// The head's status stops for longer than `failsafe.status_timeout_us`: reported
+/// (STATUS_LOST towards the controller, gate off), and cleared when it returns.
+#[test]
+fn head_status_disappears_and_returns() {
+    for (ctrl, head) in [
+        (Protocol::Xy2, Protocol::Xy3),
+        (Protocol::Xy3, Protocol::Hans),
+    ] {
+        let mut c = config(ctrl, head, Timing::FreeRunning);
+        c.failsafe.status_timeout_us = 5_000;
+        let t = GenTiming::default();
+        let n = 2500;
+        let sent = frames(&c, &t, n);
+        let label = format!("{ctrl:?} -> {head:?}");
+        // Status from 0.1 to 8 ms, silence, back from 18 ms.
+        let status: Vec<Timed> = match head {
+            Protocol::Xy3 => [(100, 8_000), (18_000, 25_000)]
+                .into_iter()
+                .flat_map(|(a, b)| head_back(115_200, a, b, 1_000, Alarms::NONE))
+                .collect(),
+            _ => [(100, 8_000), (18_000, 25_000)]
+                .into_iter()
+                .flat_map(|(a, b)| {
+                    head_hans_status(a, b, Alarms::NONE, Options::default().hans_status_sample_hz)
+                })
+                .collect(),
+        };
+        let status_times: Vec<u64> = status.iter().map(|s| s.t_ns).collect();
+        let (p, _stim, view) = run(&c, &t, &sent, |_| {}, status, 50_000);
+        assert_output_is_sent(&c, &p, &view, &label);
+        let k = p.bridge_counters();
+        assert_eq!(k.status_losses, 1, "{label}: {k:?}");
+        assert_eq!(k.input_losses, 0, "{label}: {k:?}");
+        assert!(
+            p.counters().status_items > 10,
+            "{label}: {:?}",
+            p.counters()
+        );
+        // Each start of the status stream costs a resync (the backchannel parser's
+        // first sync counts too), each stop at most a cut frame.
+        assert!(
+            p.counters().status_faults <= 4,
+            "{label}: {:?}",
+            p.counters()
+        );
+        // The gate: on after start-up, off at last status + timeout, on again when
+        // the status is back.
+        // The last status item before the silence (HANS-100: the stream's end; the
+        // sampler's words run on for 2 us of idle line).
+        let last_status = match head {
+            Protocol::Hans => 8_000_000,
+            _ => status_times
+                .iter()
+                .filter(|&&t| t < 9_000_000)
+                .max()
+                .copied()
+                .unwrap(),
+        };
+        let gate: Vec<(u64, bool)> = p.gate().iter().map(|c| (c.t_ns, c.value)).collect();
+        assert_eq!(gate.len(), 4, "{label}: {gate:?}");
+        let lost_at = last_status + 5_000_000;
+        assert!(
+            gate[2].0 + 50_000 >= lost_at && gate[2].0 <= lost_at + 20_000 && !gate[2].1,
+            "{label}: {gate:?} {last_status}"
+        );
+        assert!(
+            gate[3].0 >= 18_000_000 && gate[3].0 <= 18_400_000,
+            "{label}: {gate:?}"
+        );
+        let lost = controller_alarms(&c, &p, lost_at + 20_000, 18_000_000);
+        let expect = match ctrl {
+            Protocol::Xy2 => Alarms::INPUT_LOST, // the level says only "fault"
+            _ => Alarms::COMMUNICATION,
+        };
+        assert!(lost.contains(expect), "{label}: {lost:?}");
+        assert!(
+            !controller_alarms(&c, &p, 19_000_000, 24_000_000).any(),
+            "{label}"
+        );
+    }
+}
+
+/// The task graph (async tasks over `embassy-sync` channels on a simulated clock)
+/// gives exactly what the synchronous pipeline gives for the same buffers.
+fn same_as_tasks(c: &Config, items: &[Timed], end_ns: u64, label: &str) {
+    let mut p = Pipeline::new(c, Options::default()).unwrap();
+    stimulus::run(&mut p, items, end_ns).unwrap();
+    let r = host_tests::pipeline::tasks::run(c, Options::default(), items, end_ns).unwrap();
+    let k = &r.core;
+    assert_eq!(r.stalls, 0, "{label}");
+    assert!(
+        r.checks as u64 >= end_ns / 50_000 / 2,
+        "{label}: {} checks",
+        r.checks
+    );
+    assert_eq!(k.now_ns(), p.now_ns(), "{label}");
+    assert_eq!(k.head_output(), p.head_output(), "{label}");
+    assert_eq!(k.sent(), p.sent(), "{label}");
+    assert_eq!(k.controller_status(), p.controller_status(), "{label}");
+    assert_eq!(k.states(), p.states(), "{label}");
+    assert_eq!(k.gate(), p.gate(), "{label}");
+    assert_eq!(k.bridge_counters(), p.bridge_counters(), "{label}");
+    assert_eq!(k.counters(), p.counters(), "{label}");
+    assert!(!p.sent().is_empty(), "{label}");
+}
+
+#[test]
+fn task_graph_matches_the_synchronous_core() {
+    let t = GenTiming::default();
+    for ctrl in PROTOCOLS {
+        for head in PROTOCOLS {
+            for timing in [Timing::FreeRunning, Timing::Slaved] {
+                if head == Protocol::Hans && timing == Timing::Slaved {
+                    continue;
+                }
+                let c = config(ctrl, head, timing);
+                let sent = frames(&c, &t, 120);
+                let mut stim = stimulus::controller_signal(&c, &sent, &t).unwrap();
+                // A clock / line gap makes the fail-safe path run too.
+                let line = if ctrl == Protocol::Hans {
+                    roles::HANS_CHANNELS[0]
+                } else {
+                    roles::CLK
+                };
+                impair::gap(&mut stim.wave, line, 600_000_000, 800_000_000, false).unwrap();
+                let items =
+                    stimulus::capture(&c, &stim.wave, Options::default().hans_sample_hz, 0.2)
+                        .unwrap();
+                let items = stimulus::chunk(items, 2_000);
+                let status: Vec<Timed> = match head {
+                    Protocol::Xy2 => stimulus::level_samples(1_500_000, 10_000, |t| t > 900_000),
+                    Protocol::Xy3 => head_back(115_200, 100, 1_200, 500, Alarms::TEMPERATURE),
+                    Protocol::Hans => head_hans_status(100, 1_000, Alarms::POWER, 40_000_000),
+                };
+                let items = stimulus::merge(vec![items, status]);
+                same_as_tasks(
+                    &c,
+                    &items,
+                    1_600_000,
+                    &format!("{ctrl:?} -> {head:?} {timing:?}"),
+                );
+            }
+        }
+    }
+}
+
+/// Added latency (simulated time, so exact): slaved output within the modelled
+/// 1 us turnaround plus the receiver's own delay; free-running output one slot
+/// ahead (two for the HANS-100 ring) plus up to one slot of phase.
+#[test]
+fn latency_bounds() {
+    use host_tests::pipeline::latency::{config, measure};
+    for ctrl in PROTOCOLS {
+        for head in PROTOCOLS {
+            let lead = if head == Protocol::Hans { 2.0 } else { 1.0 };
+            let l = measure(&config(ctrl, head, Timing::FreeRunning), 4, 30).unwrap();
+            let label = format!("{ctrl:?} -> {head:?}: {l:?}");
+            assert!(l.frames >= 60, "{label}");
+            assert!(l.min_ns >= lead * 10_000.0, "{label}");
+            assert!(l.max_ns < (lead + 1.0) * 10_000.0 + 1_000.0, "{label}");
+            assert!(
+                l.max_ns - l.min_ns >= 7_000.0,
+                "{label}: the phase sweep shows"
+            );
+            if head != Protocol::Hans {
+                let s = measure(&config(ctrl, head, Timing::Slaved), 2, 30).unwrap();
+                assert!(
+                    s.min_ns >= 1_000.0 && s.max_ns < 2_000.0,
+                    "{ctrl:?} -> {head:?}: {s:?}"
+                );
+            }
+        }
+    }
+}
+
+/// Head alarms reach the controller in its protocol, for every head status form
+/// and every controller status form, decoded on both sides with `shared`'s
+/// receivers; the laser gate drops with the head alarm.
+#[test]
+fn head_alarm_reaches_the_controller() {
+    use shared::bridge::StatusForm;
+    use shared::xy2::StatusWord;
+    let forms = [
+        (Protocol::Xy2, StatusForm::Level),
+        (Protocol::Xy2, StatusForm::Word),
+        (Protocol::Xy3, StatusForm::Level),
+        (Protocol::Hans, StatusForm::Level),
+    ];
+    let alarm_at: u64 = 2_000_000;
+    for (head, hform) in forms {
+        for (ctrl, cform) in forms {
+            let mut c = config(ctrl, head, Timing::FreeRunning);
+            c.head.xy2.status = hform;
+            c.controller.xy2.status = cform;
+            let label = format!("{head:?} {hform:?} -> {ctrl:?} {cform:?}");
+            let t = GenTiming::default();
+            let sent = frames(&c, &t, 400);
+            let end = 4_000_000;
+            let status: Vec<Timed> = match (head, hform) {
+                (Protocol::Xy2, StatusForm::Level) => {
+                    stimulus::level_samples(end, 10_000, |t| t >= alarm_at)
+                }
+                (Protocol::Xy2, _) => {
+                    let link = shared::xy2::LinkConfig {
+                        mode: c.head.xy2.mode,
+                        parity: c.head.xy2.parity,
+                    };
+                    let ok = stimulus::status_words(StatusWord::ALL_OK, &link, 20, 400);
+                    let hot = StatusWord::from_alarms(Alarms::TEMPERATURE);
+                    let bad = stimulus::status_words(hot, &link, 20, 400);
+                    ok.into_iter()
+                        .zip(bad)
+                        .map(|(o, b)| if o.t_ns <= alarm_at { o } else { b })
+                        .collect()
+                }
+                (Protocol::Xy3, _) => {
+                    let mut v = head_back(115_200, 100, 2_000, 500, Alarms::NONE);
+                    v.extend(head_back(115_200, 2_000, 4_000, 500, Alarms::TEMPERATURE));
+                    v
+                }
+                _ => {
+                    let fs = Options::default().hans_status_sample_hz;
+                    let mut v = head_hans_status(0, 2_000, Alarms::NONE, fs);
+                    v.retain(|x| x.t_ns < alarm_at);
+                    v.extend(head_hans_status(2_000, 4_000, Alarms::TEMPERATURE, fs));
+                    v
+                }
+            };
+            let (p, _stim, view) = run(&c, &t, &sent, |_| {}, status, 50_000);
+            assert_output_is_sent(&c, &p, &view, &label);
+            let k = p.counters();
+            assert!(k.status_items > 5, "{label}: {k:?}");
+            // (An XY3-100 controller's UART needs ~1 ms for the first packets.)
+            let before = controller_alarms(&c, &p, 1_200_000, alarm_at);
+            assert!(!before.any(), "{label}: {before:?} before the alarm");
+            let after = controller_alarms(&c, &p, alarm_at, end);
+            // What each path can say: an XY2 level only "fault" (electrical on the
+            // way in, a fault level on the way out).
+            let want = match (head, hform, ctrl, cform) {
+                (_, _, Protocol::Xy2, StatusForm::Level) => Alarms::INPUT_LOST,
+                (Protocol::Xy2, StatusForm::Level, Protocol::Xy2, _) => Alarms::POWER,
+                (Protocol::Xy2, StatusForm::Level, Protocol::Hans, _) => Alarms::POWER,
+                (Protocol::Xy2, StatusForm::Level, _, _) => Alarms::ELECTRICAL,
+                _ => Alarms::TEMPERATURE,
+            };
+            assert!(after.contains(want), "{label}: {after:?}, want {want:?}");
+            // The gate: on while running with a healthy head, off with the alarm.
+            let gate: Vec<(u64, bool)> = p.gate().iter().map(|g| (g.t_ns, g.value)).collect();
+            assert_eq!(gate.len(), 3, "{label}: {gate:?}");
+            assert!(gate[1].1 && !gate[2].1, "{label}: {gate:?}");
+            // (A backchannel head needs ~0.6 ms at 115200 baud for SYNC + packet.)
+            assert!(
+                gate[2].0 >= alarm_at && gate[2].0 < alarm_at + 700_000,
+                "{label}: {gate:?}"
+            );
+            assert_eq!(p.bridge().state(), LinkState::Running, "{label}");
+        }
     }
 }

@@ -111,10 +111,7 @@ impl CtrlStatus {
             form: c.xy2.status,
             step: 0,
             hans: (c.protocol == Protocol::Hans).then(|| Box::new(HansRing::new())),
-            // The first poll is one step in: a start bit at time 0 cannot be told
-            // from a line that was low all along (a VCD's first value is its level
-            // at 0), so a UART needs some idle-high time before its first byte.
-            back_free_ns: STEP_NS,
+            back_free_ns: 0,
             baud: c.xy3.back_rate.baud(),
         }
     }
@@ -146,7 +143,9 @@ impl CtrlStatus {
                     ring.step(k, Some(frame));
                 }
             }
-            Protocol::Xy3 if now >= self.back_free_ns => {
+            // The UART starts with the first step after power-up (time 0 itself is
+            // the line's initial level).
+            Protocol::Xy3 if now >= self.back_free_ns && now > 0 => {
                 let mut buf = [0u8; SEND_BUF_LEN];
                 let n = bridge.xy3_back_poll(now, &mut buf).unwrap_or(0);
                 let byte_ns = UART_BITS * 1_000_000_000 / u64::from(self.baud.max(1));

@@ -1,9 +1,9 @@
 //! The reverse path in: the head's status lines through their `shared` receivers into
 //! the bridge's [`HeadStatus`](shared::model::HeadStatus).
 
-use shared::bridge::{Bridge, Config, Protocol, StatusForm};
+use shared::bridge::{Config, Protocol, StatusForm};
 use shared::hans::{self, StatusReceiver};
-use shared::model::{FaultKind, Line, LineEvent};
+use shared::model::{FaultKind, HeadStatus, Line, LineEvent};
 use shared::xy2::status_line::{LevelDebouncer, StatusWordConfig, StatusWordReceiver};
 use shared::xy2::{self, StatusLevel};
 use shared::xy3::back::Parser;
@@ -25,6 +25,9 @@ enum Kind {
 /// The head-side status receiver the configuration selects.
 pub(super) struct HeadStatusIn {
     kind: Kind,
+    /// The head's status as received (the firmware's status tasks publish theirs
+    /// the same way, for the bridge loop to copy).
+    status: HeadStatus,
 }
 
 fn status_fault(kind: FaultKind) -> LineEvent {
@@ -70,25 +73,33 @@ impl HeadStatusIn {
                 Kind::Hans(Box::new(rx), StatusReceiver::new())
             }
         };
-        Ok(HeadStatusIn { kind })
+        Ok(HeadStatusIn {
+            kind,
+            status: HeadStatus::default(),
+        })
     }
 
-    /// Feeds one chunk; updates the bridge's head status, appends head-side faults
-    /// (on [`Line::Status`] / [`Line::Backchannel`]) and returns how many valid
-    /// status items arrived.
+    /// The head's status as received so far.
+    pub fn status(&self) -> &HeadStatus {
+        &self.status
+    }
+
+    /// Feeds one chunk; updates the head's status, appends head-side faults (on
+    /// [`Line::Status`] / [`Line::Backchannel`]) and returns how many valid status
+    /// items arrived.
     pub fn feed(
         &mut self,
         now: u64,
         chunk: HeadStatusInput<'_>,
-        bridge: &mut Bridge,
         faults: &mut Vec<LineEvent>,
     ) -> Result<u32, PipelineError> {
+        let status = &mut self.status;
         let mut seen = 0u32;
         match (&mut self.kind, chunk) {
             (Kind::Xy2Level(deb), HeadStatusInput::Xy2Level(samples)) => {
                 for &high in samples {
                     if let Some(change) = deb.feed(now, high) {
-                        bridge.head_status_mut().alarms = change.health.alarms();
+                        status.alarms = change.health.alarms();
                     }
                     seen += 1;
                 }
@@ -96,7 +107,7 @@ impl HeadStatusIn {
             (Kind::Xy2Word(rx), HeadStatusInput::Xy2Word(samples)) => {
                 rx.feed(samples, &mut |r| match r {
                     Ok(word) => {
-                        bridge.head_status_mut().alarms = word.alarms();
+                        status.alarms = word.alarms();
                         seen += 1;
                     }
                     Err(_) => faults.push(status_fault(FaultKind::CheckFailed)),
@@ -104,17 +115,17 @@ impl HeadStatusIn {
             }
             (Kind::Xy3(parser), HeadStatusInput::Xy3Back(bytes)) => {
                 let before = parser.stats();
-                back_rx::push_bytes(parser, bytes, bridge.head_status_mut(), |f| faults.push(f));
+                back_rx::push_bytes(parser, bytes, status, |f| faults.push(f));
                 let after = parser.stats();
                 // Every packet counts, SYNC packets too (a resync is built on one).
                 seen += after.packets.wrapping_sub(before.packets)
                     + after.resyncs.wrapping_sub(before.resyncs);
             }
-            (Kind::Hans(rx, status), HeadStatusInput::HansStatus(words)) => {
+            (Kind::Hans(rx, receiver), HeadStatusInput::HansStatus(words)) => {
                 let chunks: [&[u16]; 1] = [words];
                 rx.push(&chunks, &mut |ev| match ev {
                     hans::rx::RxEvent::Frame(f) => {
-                        status.apply(&f, bridge.head_status_mut());
+                        receiver.apply(&f, status);
                         seen += 1;
                     }
                     // The head's STATUS line is not a controller channel.

@@ -76,15 +76,6 @@ impl Input {
         }
     }
 
-    pub fn accepts(&self, chunk: &ControllerInput<'_>) -> bool {
-        matches!(
-            (self, chunk),
-            (Input::Xy2(_), ControllerInput::Xy2(_))
-                | (Input::Xy3(_), ControllerInput::Xy3 { .. })
-                | (Input::Hans(_), ControllerInput::Hans(_))
-        )
-    }
-
     /// Runs the receiver over `chunk` and appends its events in order.
     pub fn feed(
         &mut self,

@@ -12,7 +12,8 @@
 //! head status lines
 //!   -> Pipeline::feed_status(now_ns, HeadStatusInput::{Xy2Level, Xy2Word, Xy3Back,
 //!      HansStatus}) -> debouncer / status-word receiver / backchannel parser /
-//!      HANS STATUS receiver -> Bridge::head_status_mut + status_seen
+//!      HANS STATUS receiver -> the head's HeadStatus, copied into the bridge
+//!      (Bridge::head_status_mut) + status_seen, as the firmware's status tasks do
 //!   -> controller status (every 10 us): XY2 STATUS level changes, XY2 status words
 //!      (one per controller frame), XY3 backchannel bytes (Bridge::xy3_back_poll, a
 //!      UART at the controller-side rate), HANS STATUS frames (a second hans ring)
@@ -42,16 +43,30 @@
 //! The record of every frame sent ([`SentFrame`]), the laser gate and link state
 //! changes are kept for tests; [`HeadOutput::to_waveform`] and the
 //! [`ControllerStatus`] helpers turn the buffers into waveforms (`crate::line`).
+//!
+//! # Parts
+//! - [`Pipeline`] = controller-side receiver + head-side status receiver + [`Core`]
+//!   (bridge, output clock and encoder, controller-side status);
+//! - [`tasks`]: the same parts as the firmware's task graph (embassy-sync channels,
+//!   simulated clock), tested to give the same output;
+//! - [`stimulus`]: controller signals from `shared`'s transmitters, waveforms ->
+//!   time-stamped DMA buffers, head status stimuli;
+//! - [`check`]: independent decoding of the head-side output, expected values;
+//! - [`latency`]: the added latency per pairing (bin `pipeline-latency`).
 
 pub mod check;
+mod core;
 mod ctrl_status;
 mod head_status;
 mod input;
+pub mod latency;
 mod output;
 pub mod stimulus;
+pub mod tasks;
 
 use std::fmt;
 
+pub use self::core::Core;
 pub use ctrl_status::{BackByte, ControllerStatus};
 pub use output::{HeadOutput, SentFrame, HEAD_PINS_XY2, HEAD_PINS_XY3};
 
@@ -204,44 +219,23 @@ pub struct PipelineCounters {
     pub status_faults: u64,
 }
 
-/// The synchronous pipeline (see the module docs).
+/// The synchronous pipeline (see the module docs): the controller-side receiver,
+/// the head-side status receiver and the [`Core`] (bridge, output, status out).
 pub struct Pipeline {
-    bridge: Bridge,
     options: Options,
     input: input::Input,
-    output: output::Output,
     head_status: head_status::HeadStatusIn,
-    ctrl: ctrl_status::CtrlStatus,
-    counters: PipelineCounters,
-    states: Vec<Change<LinkState>>,
-    gate: Vec<Change<bool>>,
-    /// Time of the last call (calls must not go back in time).
-    now_ns: u64,
+    core: Core,
 }
 
 impl Pipeline {
     /// A pipeline for `config` (validated) with the modelling `options`.
     pub fn new(config: &Config, options: Options) -> Result<Pipeline, PipelineError> {
-        let bridge = Bridge::new(config).map_err(PipelineError::Config)?;
-        let mut ctrl = ctrl_status::CtrlStatus::new(config);
-        ctrl.after_event(0, &bridge);
         Ok(Pipeline {
             input: input::Input::new(config, &options)?,
-            output: output::Output::new(config, &options)?,
             head_status: head_status::HeadStatusIn::new(config, &options)?,
-            ctrl,
-            bridge,
+            core: Core::new(config, &options)?,
             options,
-            counters: PipelineCounters::default(),
-            states: vec![Change {
-                t_ns: 0,
-                value: LinkState::Safe,
-            }],
-            gate: vec![Change {
-                t_ns: 0,
-                value: false,
-            }],
-            now_ns: 0,
         })
     }
 
@@ -250,113 +244,84 @@ impl Pipeline {
         &self.options
     }
 
+    /// The bridge, its output clock and the status producers.
+    pub fn core(&self) -> &Core {
+        &self.core
+    }
+
     /// The bridge engine (counters, state, head status, alarms).
     pub fn bridge(&self) -> &Bridge {
-        &self.bridge
+        self.core.bridge()
     }
 
     /// The bridge's counters.
     pub fn bridge_counters(&self) -> &Counters {
-        self.bridge.counters()
+        self.core.bridge().counters()
     }
 
     /// The pipeline's own counters.
     pub fn counters(&self) -> &PipelineCounters {
-        &self.counters
+        self.core.counters()
     }
 
     /// The head-side output so far (a copy of the buffers).
     pub fn head_output(&self) -> HeadOutput {
-        self.output.head()
+        self.core.head_output()
     }
 
     /// Every frame written to the head so far, in order.
     pub fn sent(&self) -> &[SentFrame] {
-        self.output.sent()
+        self.core.sent()
     }
 
     /// The controller-side status output so far (a copy).
     pub fn controller_status(&self) -> ControllerStatus {
-        self.ctrl.out()
+        self.core.controller_status()
     }
 
     /// Link state changes (the first entry is the power-up `Safe` at 0).
     pub fn states(&self) -> &[Change<LinkState>] {
-        &self.states
+        self.core.states()
     }
 
     /// Laser gate changes (the first entry is "off" at 0).
     pub fn gate(&self) -> &[Change<bool>] {
-        &self.gate
+        self.core.gate()
     }
 
     /// The laser gate now.
     pub fn gate_on(&self) -> bool {
-        self.gate.last().is_some_and(|c| c.value)
+        self.core.gate_on()
     }
 
     /// The rate the head's backchannel is expected at (XY3-100 heads; changes when a
     /// forwarded BACK_RATE command went out).
     pub fn head_back_rate(&self) -> shared::xy3::BackRate {
-        self.output.head_back_rate()
+        self.core.head_back_rate()
     }
 
     /// Time of the last call, ns.
     pub fn now_ns(&self) -> u64 {
-        self.now_ns
+        self.core.now_ns()
     }
 
     /// The time of the next thing the pipeline's own clocks do (an output slot or a
     /// controller status step), ns.
     pub fn next_deadline_ns(&self) -> u64 {
-        self.output.next_ns().min(self.ctrl.next_ns())
+        self.core.next_deadline_ns()
     }
 
     /// Runs the output and controller-status clocks for every step due before
     /// `now_ns`. Times earlier than a previous call are taken as that call's time.
     pub fn run_until(&mut self, now_ns: u64) {
-        let now_ns = now_ns.max(self.now_ns);
-        loop {
-            let out_at = self.output.next_ns();
-            let ctrl_at = self.ctrl.next_ns();
-            let at = out_at.min(ctrl_at);
-            if at >= now_ns {
-                break;
-            }
-            if out_at <= ctrl_at {
-                let o = self.output.step(&mut self.bridge, &mut self.counters);
-                self.note(out_at, &o);
-            } else {
-                self.ctrl.step(&mut self.bridge);
-            }
-        }
-        self.now_ns = now_ns;
+        self.core.run_until(now_ns);
     }
 
     /// Feeds one chunk of controller-side buffers at `now_ns` (see [`Pipeline`]).
     pub fn feed(&mut self, now_ns: u64, chunk: ControllerInput<'_>) -> Result<(), PipelineError> {
-        if !self.input.accepts(&chunk) {
-            return Err(PipelineError::WrongInput {
-                expected: self.input.name(),
-                got: chunk.name(),
-            });
-        }
-        self.run_until(now_ns);
-        let now = self.now_ns;
         let mut events: Vec<LineEvent> = Vec::new();
         self.input.feed(chunk, &mut events)?;
-        for e in events {
-            self.counters.line_events += 1;
-            if matches!(e, LineEvent::Frame(_)) {
-                self.counters.line_frames += 1;
-                self.ctrl.on_controller_frame(now, &self.bridge);
-            }
-            if let Some(o) = self.bridge.on_line_event(now, e) {
-                self.output.slaved(now, &o, &mut self.counters);
-                self.note(now, &o);
-            }
-        }
-        self.ctrl.after_event(now, &self.bridge);
+        self.core.line_events(now_ns, &events);
         Ok(())
     }
 
@@ -366,42 +331,10 @@ impl Pipeline {
         now_ns: u64,
         chunk: HeadStatusInput<'_>,
     ) -> Result<(), PipelineError> {
-        self.run_until(now_ns);
-        let now = self.now_ns;
         let mut faults = Vec::new();
-        let seen = self
-            .head_status
-            .feed(now, chunk, &mut self.bridge, &mut faults)?;
-        self.counters.status_items += u64::from(seen);
-        self.counters.status_faults += faults.len() as u64;
-        if seen > 0 {
-            self.bridge.status_seen(now);
-        }
-        for f in faults {
-            // Head-side faults only count in the bridge; they never produce output.
-            let _ = self.bridge.on_line_event(now, f);
-        }
-        self.ctrl.after_event(now, &self.bridge);
+        let seen = self.head_status.feed(now_ns, chunk, &mut faults)?;
+        self.core
+            .head_status(now_ns, seen, self.head_status.status(), &faults);
         Ok(())
-    }
-
-    /// Records state and gate changes from one bridge output.
-    fn note(&mut self, t_ns: u64, o: &shared::bridge::Output) {
-        if self.states.last().map(|c| c.value) != Some(o.state) {
-            self.states.push(Change {
-                t_ns,
-                value: o.state,
-            });
-        }
-        if self.gate.last().map(|c| c.value) != Some(o.laser.gate) {
-            self.gate.push(Change {
-                t_ns,
-                value: o.laser.gate,
-            });
-        }
-        if let Some(rate) = o.controller_back_rate {
-            self.ctrl.set_back_rate(t_ns, rate);
-        }
-        self.ctrl.after_event(t_ns, &self.bridge);
     }
 }

@@ -244,6 +244,8 @@ pub enum Buffers {
     Hans([Vec<u16>; 5]),
     /// XY2-100 STATUS level samples.
     Level(Vec<bool>),
+    /// XY2-100 STATUS word samples (one per output bit).
+    Word(Vec<u16>),
     /// XY3-100 backchannel bytes from the head.
     Back(Vec<u8>),
     /// HANS-100 STATUS ring words.
@@ -281,6 +283,7 @@ impl Buffers {
                 }
             }
             (Buffers::Level(a), Buffers::Level(b)) => a.extend(b),
+            (Buffers::Word(a), Buffers::Word(b)) => a.extend(b),
             (Buffers::Back(a), Buffers::Back(b)) => a.extend(b),
             (Buffers::HansStatus(a), Buffers::HansStatus(b)) => a.extend(b),
             (_, other) => return Err(other),
@@ -288,22 +291,49 @@ impl Buffers {
         Ok(())
     }
 
-    /// Hands these buffers to the pipeline at `t_ns`.
-    pub fn feed(&self, p: &mut Pipeline, t_ns: u64) -> Result<(), PipelineError> {
+    /// Head-side status buffers (as opposed to the controller's lines).
+    pub fn is_status(&self) -> bool {
+        matches!(
+            self,
+            Buffers::Level(_) | Buffers::Word(_) | Buffers::Back(_) | Buffers::HansStatus(_)
+        )
+    }
+
+    /// Runs `f` on the controller-side view of these buffers (`None` for status
+    /// buffers).
+    pub fn controller_input<R>(&self, f: impl FnOnce(ControllerInput<'_>) -> R) -> Option<R> {
         match self {
-            Buffers::Xy2(s) => p.feed(t_ns, ControllerInput::Xy2(s)),
+            Buffers::Xy2(s) => Some(f(ControllerInput::Xy2(s))),
             Buffers::Xy3 { lines, ends } => {
                 let l: Vec<&[u8]> = lines.iter().map(Vec::as_slice).collect();
-                p.feed(t_ns, ControllerInput::Xy3 { lines: &l, ends })
+                Some(f(ControllerInput::Xy3 { lines: &l, ends }))
             }
-            Buffers::Hans(r) => p.feed(
-                t_ns,
-                ControllerInput::Hans([&r[0], &r[1], &r[2], &r[3], &r[4]]),
-            ),
-            Buffers::Level(s) => p.feed_status(t_ns, HeadStatusInput::Xy2Level(s)),
-            Buffers::Back(b) => p.feed_status(t_ns, HeadStatusInput::Xy3Back(b)),
-            Buffers::HansStatus(w) => p.feed_status(t_ns, HeadStatusInput::HansStatus(w)),
+            Buffers::Hans(r) => Some(f(ControllerInput::Hans([
+                &r[0], &r[1], &r[2], &r[3], &r[4],
+            ]))),
+            _ => None,
         }
+    }
+
+    /// Runs `f` on the head-status view of these buffers (`None` for controller
+    /// buffers).
+    pub fn status_input<R>(&self, f: impl FnOnce(HeadStatusInput<'_>) -> R) -> Option<R> {
+        match self {
+            Buffers::Level(s) => Some(f(HeadStatusInput::Xy2Level(s))),
+            Buffers::Word(s) => Some(f(HeadStatusInput::Xy2Word(s))),
+            Buffers::Back(b) => Some(f(HeadStatusInput::Xy3Back(b))),
+            Buffers::HansStatus(w) => Some(f(HeadStatusInput::HansStatus(w))),
+            _ => None,
+        }
+    }
+
+    /// Hands these buffers to the pipeline at `t_ns`.
+    pub fn feed(&self, p: &mut Pipeline, t_ns: u64) -> Result<(), PipelineError> {
+        if let Some(r) = self.controller_input(|c| p.feed(t_ns, c)) {
+            return r;
+        }
+        self.status_input(|s| p.feed_status(t_ns, s))
+            .unwrap_or(Ok(()))
     }
 }
 
@@ -466,8 +496,8 @@ pub fn back_bytes(bytes: &[u8], baud: u32, t0_ps: Ps) -> Result<Vec<Timed>, Pipe
         .collect())
 }
 
-/// Head HANS-100 STATUS: `frames` back to back from `t0_ps`, sampled at `fs_hz`;
-/// one item per `u16` word.
+/// Head HANS-100 STATUS: `frames` back to back from `t0_ps`, sampled at `fs_hz`
+/// from `t0_ps` on; one item per `u16` word.
 pub fn hans_status(
     frames: &[hans::Frame],
     t0_ps: Ps,
@@ -486,7 +516,7 @@ pub fn hans_status(
     let fs = f64::from(fs_hz);
     let words = Oversampler {
         fs_hz: fs,
-        start_ps: 0.0,
+        start_ps: t0_ps as f64,
     }
     .sample(&w, &[roles::STATUS], end + 2_000_000)
     .map_err(err)?;
@@ -500,7 +530,7 @@ pub fn hans_status(
     {
         for (h, half) in [(word >> 16) as u16, word as u16].into_iter().enumerate() {
             let j = 2 * i + h;
-            let last = (16 * (j + 1) - 1) as f64 * PS_PER_S / fs;
+            let last = t0_ps as f64 + (16 * (j + 1) - 1) as f64 * PS_PER_S / fs;
             out.push(Timed {
                 t_ns: ns_ceil(last.round() as Ps),
                 buffers: Buffers::HansStatus(vec![half]),
@@ -535,7 +565,11 @@ pub fn frame(
     let pos =
         |v: u32, bits: u8| shared::model::Position::from_raw(v & ((1u32 << bits) - 1), bits).ok();
     let mut f = ForwardFrame::default();
-    f.axes[0] = pos(x, w[0]);
+    f.axes[0] = if command.is_some() {
+        None
+    } else {
+        pos(x, w[0])
+    };
     f.axes[1] = pos(y, w[1]);
     if config.z.source == ZSource::Input || config.controller.protocol == Protocol::Hans {
         f.axes[2] = pos(z, w[2]);
@@ -555,4 +589,46 @@ pub fn controller_widths(config: &Config, xy3_size: FrameSize) -> [u8; 3] {
         Protocol::Xy3 => [xy3_size.position_bits(); 3],
         Protocol::Hans => [20, 20, 16],
     }
+}
+
+/// XY2-100 head STATUS word: the head answers every output frame period with the
+/// status frame of `word` (the `shared` STATUS transmitter's levels, pin 0), read
+/// one sample per output bit with the frame at offset 1; one item per period, at
+/// the period's end. `samples_per_period` = output ticks per frame / 2.
+pub fn status_words(
+    word: xy2::StatusWord,
+    link: &xy2::LinkConfig,
+    samples_per_period: usize,
+    periods: usize,
+) -> Vec<Timed> {
+    let mut bsrr = [0u32; 20];
+    let out = match xy2::status_line::StatusOut::new(
+        0,
+        xy2::StatusLevel {
+            polarity: xy2::Polarity::LowIsOk,
+        },
+    ) {
+        Ok(o) => o,
+        Err(_) => return Vec::new(),
+    };
+    out.word_frame(word, link, &mut bsrr);
+    // Set (low half) = high level.
+    let bits: Vec<u16> = bsrr.iter().map(|w| u16::from(w & 1 != 0)).collect();
+    let mut samples = vec![0u16; samples_per_period * periods + 1];
+    for p in 0..periods {
+        for (k, &b) in bits.iter().enumerate() {
+            if let Some(s) = samples.get_mut(p * samples_per_period + 1 + k) {
+                *s = b;
+            }
+        }
+    }
+    let period_ns = samples_per_period as u64 * 500;
+    samples
+        .chunks(samples_per_period)
+        .enumerate()
+        .map(|(p, c)| Timed {
+            t_ns: (p as u64 + 1) * period_ns,
+            buffers: Buffers::Word(c.to_vec()),
+        })
+        .collect()
 }
