@@ -1058,6 +1058,26 @@ fn demo_runs_and_its_files_decode() {
         "parked at {parked} ns"
     );
 
+    // The replay the demo prints gives the same head-side file.
+    ok_in(
+        &d,
+        &[
+            "bridge",
+            "--config",
+            "bridge-sim-demo/bridge.toml",
+            "--input",
+            "bridge-sim-demo/controller.vcd",
+            "--head-status",
+            "bridge-sim-demo/head-status.vcd",
+            "--output-dir",
+            "replay",
+        ],
+    );
+    assert_eq!(
+        std::fs::read(d.join("replay/head.vcd")).unwrap(),
+        std::fs::read(demo.join("head.vcd")).unwrap()
+    );
+
     // The laser gate: on once the link runs, off at the loss (16 ms).
     let wave = read_vcd_file(&demo.join("head.vcd"), &["laser_gate"], &NameMap::new()).unwrap();
     let gate = wave.get("laser_gate").unwrap();
