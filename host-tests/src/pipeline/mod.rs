@@ -21,7 +21,9 @@
 //! ```
 //! Time is the caller's: every call carries `now_ns` (monotonic, nanoseconds). All
 //! events of one [`Pipeline::feed`] call are stamped with its `now_ns` (the moment
-//! the firmware would have the buffer: a DMA half, or one sample when fed finely);
+//! the firmware would have the buffer: a DMA half, or one sample when fed finely;
+//! [`Pipeline::feed_spread`] spreads a DMA half's events over the following span
+//! as the firmware's bridge loop does);
 //! before they are applied, every output slot due before `now_ns` is computed, so
 //! the output never sees the future.
 //!
@@ -322,6 +324,29 @@ impl Pipeline {
         let mut events: Vec<LineEvent> = Vec::new();
         self.input.feed(chunk, &mut events)?;
         self.core.line_events(now_ns, &events);
+        Ok(())
+    }
+
+    /// Like [`Pipeline::feed`] for a chunk holding many frames (a DMA half that
+    /// arrived at `now_ns`): its receiver events are applied in order, spread evenly
+    /// over `[now_ns, now_ns + span_ns)` (event `k` of `n` at `now_ns + span_ns * k /
+    /// n`), as the firmware's bridge loop spreads a half's events over the output
+    /// slots of its next batch. A free-running output then carries consecutive
+    /// frames in consecutive slots instead of only the newest of the chunk. Later
+    /// calls must not start before the last event's time.
+    pub fn feed_spread(
+        &mut self,
+        now_ns: u64,
+        span_ns: u64,
+        chunk: ControllerInput<'_>,
+    ) -> Result<(), PipelineError> {
+        let mut events: Vec<LineEvent> = Vec::new();
+        self.input.feed(chunk, &mut events)?;
+        let n = events.len().max(1) as u64;
+        for (k, e) in events.iter().enumerate() {
+            let t = now_ns + span_ns * k as u64 / n;
+            self.core.line_events(t, std::slice::from_ref(e));
+        }
         Ok(())
     }
 
