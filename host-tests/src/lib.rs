@@ -7,12 +7,15 @@
 //! - [`line`] — waveforms <-> the firmware's DMA buffers, and a serial frame generator;
 //! - [`impair`] — reproducible line impairments (rate offset, jitter, skew, noise,
 //!   stuck/broken channels, clock gaps);
+//! - [`pipeline`] — the whole bridge (receiver -> engine -> transmitter, status back)
+//!   on DMA buffers with simulated time, and its task graph;
 //! - [`sim`] — the `bridge-sim` tool's commands and JSON-lines formats.
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
 pub mod impair;
 pub mod line;
+pub mod pipeline;
 pub mod sim;
 pub mod vcd_io;
 pub mod wave;

@@ -840,38 +840,6 @@ fn bad_input_fails_cleanly() {
     assert_eq!(o.code, 2);
 }
 
-#[test]
-fn missing_engines_say_so() {
-    let d = dir("missing");
-    let vcd = d.join("x.vcd");
-    ok(&[
-        "generate",
-        "--protocol",
-        "xy2",
-        "--frames",
-        "3",
-        "--output",
-        vcd.to_str().unwrap(),
-    ]);
-    for args in [
-        vec![
-            "bridge",
-            "--config",
-            "b.toml",
-            "--input",
-            vcd.to_str().unwrap(),
-            "--output-dir",
-            d.to_str().unwrap(),
-        ],
-        vec![],
-    ] {
-        let o = run(&args);
-        assert_eq!(o.code, 3, "{args:?}");
-        assert!(o.stderr.contains("not available yet"), "{}", o.stderr);
-        assert!(o.stdout.is_empty());
-    }
-}
-
 // ---------------------------------------------------------------- formats
 
 #[test]

@@ -122,6 +122,17 @@ fn test_all() -> Result {
 
     let host_test = with_packages(vec!["test", "--release", "--target", HOST], HOST_PACKAGES);
     cargo(&host_test)?;
+    // The bridge's added latency per pairing, on the host pipeline (a few seconds).
+    cargo(&[
+        "run",
+        "--release",
+        "--target",
+        HOST,
+        "-p",
+        "host-tests",
+        "--bin",
+        "pipeline-latency",
+    ])?;
 
     firmware_size()?;
     // The hardware-in-the-loop tests need a board to run, but must always build.

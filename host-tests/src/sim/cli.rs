@@ -1,7 +1,6 @@
 //! The `bridge-sim` command line and its commands (see the README, section "bridge-sim").
 //!
-//! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage (clap), 3 a command whose
-//! engine is not merged yet.
+//! Exit codes: 0 success, 1 error (bad input, I/O), 2 usage (clap).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -14,11 +13,12 @@ use super::decode::{self, HansMode, Summary};
 use super::encode::{self, Encoded, ForwardTiming};
 use super::generate::{self, GenOptions, ImpairOpts, Pattern};
 use super::jsonl::{self, BackRecord, ForwardRecord, HansRecord};
+use super::{bridge, capture, demo};
 use super::{names, Protocol, SimError};
 use crate::vcd_io::{self, NameMap, WriteTimescale};
 
 /// bridge-sim: the bridge's `shared` code on waveforms — decode logic-analyser captures
-/// (VCD), encode and generate test signals.
+/// (VCD), encode and generate test signals, run the whole bridge on a capture.
 #[derive(Debug, Parser)]
 #[command(name = "bridge-sim", version, about, long_about = None)]
 pub struct Cli {
@@ -200,15 +200,30 @@ pub struct GenerateArgs {
 /// `bridge` options.
 #[derive(Debug, Clone, Args)]
 pub struct BridgeArgs {
-    /// Bridge configuration.
+    /// Bridge configuration (the firmware's file format: every key optional).
     #[arg(long, value_name = "bridge.toml")]
     pub config: PathBuf,
-    /// Controller-side capture.
+    /// Controller-side capture (signals named as for `decode` of the controller's
+    /// protocol).
     #[arg(long, value_name = "FILE.vcd")]
     pub input: PathBuf,
-    /// Where the head-side waveforms go.
+    /// Where the waveforms go (created if missing): head.vcd, controller-status.vcd.
     #[arg(long, value_name = "DIR")]
     pub output_dir: PathBuf,
+    /// The head's status capture: `status` (XY2-100 level or word, HANS-100 STATUS)
+    /// or `back` (XY3-100 backchannel).
+    #[arg(long, value_name = "FILE.vcd")]
+    pub head_status: Option<PathBuf>,
+    /// File signal NAME for ROLE in both captures; repeatable.
+    #[arg(long = "map", value_name = "ROLE=NAME")]
+    pub map: Vec<String>,
+    /// Seed of the HANS-100 oversampling clocks' phases.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// HANS-100 controller input: oversampling ratio (sampling clock = ratio x 12.5
+    /// MHz).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(3..=4))]
+    pub hans_oversample: u8,
 }
 
 /// Parses the arguments, runs the command, prints any error as one line.
@@ -218,10 +233,7 @@ pub fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("bridge-sim: error: {e}");
-            ExitCode::from(match e {
-                SimError::NotAvailable { .. } => 3,
-                _ => 1,
-            })
+            ExitCode::from(1)
         }
     }
 }
@@ -232,19 +244,32 @@ pub fn run(cli: &Cli) -> Result<(), SimError> {
         Some(Cmd::Decode(a)) => run_decode(a),
         Some(Cmd::Encode(a)) => run_encode(a),
         Some(Cmd::Generate(a)) => run_generate(a),
-        // PLUG-IN (shared::bridge): run the engine on the capture; write head-side VCDs.
-        Some(Cmd::Bridge(_)) => Err(SimError::NotAvailable {
-            what: "bridge".to_owned(),
-            needs: "the bridge engine (shared::bridge) wired into bridge-sim (not done yet)",
-        }),
-        // PLUG-IN (shared::bridge + shared::xy2::rx + shared::hans::tx): the XY2-100 ->
-        // HANS-100 demo.
-        None => Err(SimError::NotAvailable {
-            what: "the demo (XY2-100 controller bridged to a HANS-100 head)".to_owned(),
-            needs: "the bridge engine (shared::bridge) wired into bridge-sim (not done \
-                    yet); `bridge-sim --help` lists the commands that work now",
-        }),
+        Some(Cmd::Bridge(a)) => run_bridge(a),
+        None => {
+            let report = demo::run(Path::new(demo::DEMO_DIR))?;
+            print!("{report}");
+            Ok(())
+        }
     }
+}
+
+fn run_bridge(a: &BridgeArgs) -> Result<(), SimError> {
+    let mut map = NameMap::new();
+    for m in &a.map {
+        map.parse_arg(m)?;
+    }
+    let run = bridge::BridgeRun {
+        config: bridge::load_config(&a.config)?,
+        input: &a.input,
+        head_status: a.head_status.as_deref(),
+        map: &map,
+        seed: a.seed,
+        hans_sample_hz: 12_500_000 * u32::from(a.hans_oversample),
+        output_dir: &a.output_dir,
+    };
+    let report = bridge::run(&run)?;
+    eprint!("{report}");
+    Ok(())
 }
 
 fn read_text(path: &Path) -> Result<String, SimError> {
@@ -295,8 +320,14 @@ fn run_decode(a: &DecodeArgs) -> Result<(), SimError> {
             s
         }
         Protocol::Xy3Back => {
-            let wave = decode::read_capture(&a.input, &[names::BACK], &[names::BACK], 1, &map)?;
-            let (records, s) = decode::back(&wave, f64::from(a.link.baud))?;
+            let frames = capture::uart_line(
+                &a.input,
+                &map,
+                names::BACK,
+                names::BACK,
+                f64::from(a.link.baud),
+            )?;
+            let (records, s) = decode::back(frames);
             write_lines(stdout, "stdout", &records)?;
             s
         }

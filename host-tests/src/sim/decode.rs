@@ -5,13 +5,13 @@
 //!   included, as an error on every channel).
 //! - XY3-100: SPI-slave bytes plus SYNC frame ends ([`sample::xy3_spi`]) into
 //!   [`xy3::rx::Receiver`] in contract-sized chunks; one record per frame period.
-//! - Backchannel: UART 8N1 frames ([`uart::uart_decode`]) into the firmware's
-//!   [`Parser`].
+//! - Backchannel: UART 8N1 frames into the firmware's [`Parser`].
 //! - HANS-100: the capture is oversampled into the firmware's `u16` rings (an arbitrary
 //!   sampling phase) and fed to [`hans::rx::HansRx`] in the chosen decode mode.
 //!
-//! The firmware's buffers carry no time; the samplers keep a parallel vector of sample
-//! times from which each record's `t_ns` (the frame start) is derived.
+//! The buffers come from [`capture`] (shared with `bridge`). The firmware's buffers
+//! carry no time; the samplers keep a parallel vector of sample times from which each
+//! record's `t_ns` (the frame start) is derived.
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -23,12 +23,13 @@ use shared::{hans, xy2};
 use shared::model::Axis;
 use shared::xy3;
 
+use super::capture;
 use super::jsonl::{BackRecord, Channel, ForwardRecord, HansRecord};
-use super::{names, SimError};
-use crate::line::sample::{self, Oversampler, PartialByte, PinMap, SpiCapture};
-use crate::line::{roles, uart};
-use crate::vcd_io::{self, NameMap, VcdError};
-use crate::wave::{Ps, Waveform};
+use super::SimError;
+use crate::line::sample::SpiCapture;
+use crate::line::uart::UartFrame;
+use crate::vcd_io::NameMap;
+use crate::wave::Ps;
 
 /// What a decode run saw, for the summary on stderr.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
@@ -68,45 +69,6 @@ impl fmt::Display for Summary {
 fn ns(ps: Ps) -> u64 {
     (ps + 500) / 1000
 }
-
-/// Reads `roles` from a capture, each under its default file name (`defaults`, same
-/// order) unless `--map` renames it. Signals come back named by role. Roles from
-/// `optional_from` on may be missing.
-pub fn read_capture(
-    path: &std::path::Path,
-    roles: &[&str],
-    defaults: &[&str],
-    optional_from: usize,
-    user: &NameMap,
-) -> Result<Waveform, SimError> {
-    let mut map = NameMap::new();
-    for (role, default) in roles.iter().zip(defaults) {
-        map.set(*role, user.resolve(default));
-    }
-    let mut wanted: Vec<&str> = roles.to_vec();
-    loop {
-        match vcd_io::read_vcd_file(path, &wanted, &map) {
-            Err(VcdError::MissingSignal { role, .. })
-                if wanted
-                    .iter()
-                    .position(|r| *r == role)
-                    .is_some_and(|i| i >= optional_from) =>
-            {
-                wanted.retain(|r| *r != role);
-            }
-            other => return other.map_err(SimError::from),
-        }
-    }
-}
-
-/// The XY2-100 input pins used for simulation (any distinct bits would do).
-pub const XY2_PINS: PinMap = PinMap {
-    sync: 0,
-    x: 1,
-    y: 2,
-    z: Some(3),
-    status: None,
-};
 
 /// Frame start in ns from the first and last sample time of a frame (`bits` samples
 /// apart): the first CLK falling edge minus half a bit, the bit time taken from the
@@ -161,46 +123,13 @@ pub fn xy2(
     map: &NameMap,
     config: &xy2::LinkConfig,
 ) -> Result<(Vec<ForwardRecord>, Summary), SimError> {
-    let wave = read_capture(
-        path,
-        &[roles::CLK, roles::SYNC, roles::X, roles::Y, roles::Z],
-        &[
-            names::CLK,
-            names::SYNC,
-            names::XY2_DATA[0],
-            names::XY2_DATA[1],
-            names::XY2_DATA[2],
-        ],
-        4,
-        map,
-    )?;
-    let pins = PinMap {
-        z: wave.get(roles::Z).and(XY2_PINS.z),
-        ..XY2_PINS
-    };
-    let (mut words, mut times) = sample::xy2_port_samples(&wave, &pins)?;
-    // The receiver only trusts a frame whose SYNC rising edge it saw (a low sample,
-    // then high ones). The firmware gets samples at CLK edges only, so a capture that
-    // starts with the line idle and CLK stopped would lose its first frame although the
-    // capture shows it whole. SYNC low at the capture start counts as one idle sample
-    // (its data bits never reach a decoded word: a frame is the 20 samples after it).
-    if wave.get(roles::SYNC).is_some_and(|s| !s.level_at(0)) {
-        words.insert(0, 0);
-        times.insert(0, 0);
-    }
-    let mut rx = xy2::rx::Receiver::new(
-        xy2::rx::PinMap {
-            sync: pins.sync,
-            x: pins.x,
-            y: pins.y,
-            z: pins.z,
-        },
-        *config,
-    )
-    .map_err(|e| SimError::BadOption {
-        option: "--map",
-        message: e.to_string(),
-    })?;
+    let input = capture::xy2(path, map, capture::Lines::Present)?;
+    let (words, times) = (&input.words, &input.times);
+    let mut rx =
+        xy2::rx::Receiver::new(input.rx_pins(), *config).map_err(|e| SimError::BadOption {
+            option: "--map",
+            message: e.to_string(),
+        })?;
     let mut out = Vec::new();
     let mut sum = Summary::default();
     // The last bit time seen in a good frame (ps), for periods too short to measure.
@@ -249,7 +178,7 @@ pub fn xy2(
                         ("x", Channel::Error(reason.clone())),
                         ("y", Channel::Error(reason.clone())),
                     ];
-                    if pins.z.is_some() {
+                    if input.pins.z.is_some() {
                         ch.push(("z", Channel::Error(reason)));
                     }
                     (first, Some(ch))
@@ -322,31 +251,17 @@ pub fn xy3(
     path: &std::path::Path,
     map: &NameMap,
 ) -> Result<(Vec<ForwardRecord>, Summary), SimError> {
-    let all = [roles::X, roles::Y, roles::Z, roles::U, roles::W];
-    let mut r: Vec<&str> = vec![roles::CLK, roles::SYNC];
-    r.extend(all);
-    let mut d: Vec<&str> = vec![names::CLK, names::SYNC];
-    d.extend(names::XY3_DATA);
-    // X is required; the other lines may be absent.
-    let wave = read_capture(path, &r, &d, 3, map)?;
-    let present: Vec<(Axis, &str, &str)> = Axis::ALL
-        .into_iter()
-        .zip(all)
-        .zip(names::XY3_DATA)
-        .filter(|((_, role), _)| wave.get(role).is_some())
-        .map(|((a, role), key)| (a, role, key))
-        .collect();
-    let lanes: Vec<&str> = present.iter().map(|(_, role, _)| *role).collect();
-    let axes: Vec<Axis> = present.iter().map(|(a, _, _)| *a).collect();
-    let cap: SpiCapture = sample::xy3_spi(&wave, &lanes, PartialByte::Discard)?;
-    let lines = xy3::rx::Lines::new(&axes).ok_or_else(|| SimError::BadOption {
+    let input = capture::xy3(path, map, capture::Lines::Present)?;
+    let present = &input.present;
+    let cap: &SpiCapture = &input.spi;
+    let lines = xy3::rx::Lines::new(&input.axes()).ok_or_else(|| SimError::BadOption {
         option: "--map",
         message: "XY3-100 needs the X line".to_owned(),
     })?;
     let mut rx = xy3::rx::Receiver::new(lines);
     let mut st = Xy3State {
-        cap: &cap,
-        present: &present,
+        cap,
+        present,
         out: Vec::new(),
         sum: Summary::default(),
         periods: 0,
@@ -495,45 +410,12 @@ pub fn hans(
     seed: u64,
 ) -> Result<(Vec<HansRecord>, Summary), SimError> {
     // Normal mode needs its one channel only; the others need all five.
-    let (r, d): (Vec<&str>, Vec<&str>) = match mode {
-        HansMode::Normal(n) => {
-            let i = usize::from(n.saturating_sub(1));
-            (
-                roles::HANS_CHANNELS.get(i..=i).unwrap_or(&[]).to_vec(),
-                names::HANS.get(i..=i).unwrap_or(&[]).to_vec(),
-            )
-        }
-        _ => (roles::HANS_CHANNELS.to_vec(), names::HANS.to_vec()),
+    let channels: Vec<u8> = match mode {
+        HansMode::Normal(n) => vec![n],
+        _ => (1..=5).collect(),
     };
-    let wave = read_capture(path, &r, &d, r.len(), map)?;
-    // The capture's end (for silence at the end) counts the other channels too.
-    let capture_end_ps = match mode {
-        HansMode::Normal(_) => read_capture(path, &roles::HANS_CHANNELS, &names::HANS, 0, map)?
-            .end_time()
-            .max(wave.end_time()),
-        _ => wave.end_time(),
-    };
-    let fs = 12.5e6 * f64::from(oversample);
-    // Phase: somewhere inside the first sample period, reproducible from the seed.
-    let start_ps = (seed % 1000) as f64 / 1000.0 * 1e12 / fs;
-    // 2 us of the lines' final levels after the last change: enough for a period
-    // still waiting for a missing channel to close (two words), too short for the
-    // idle level to look like a frame.
-    let end = wave.end_time().saturating_add(2_000_000);
-    let words32 = Oversampler {
-        fs_hz: fs,
-        start_ps,
-    }
-    .sample(&wave, &r, end)?;
-    // The firmware's rings are u16, MSB first (layouts item 3): each u32 is two of them.
-    let rings: Vec<Vec<u16>> = words32
-        .iter()
-        .map(|ch| {
-            ch.iter()
-                .flat_map(|w| [(w >> 16) as u16, *w as u16])
-                .collect()
-        })
-        .collect();
+    let input = capture::hans(path, map, &channels, 12.5e6 * f64::from(oversample), seed)?;
+    let (start_ps, capture_end_ps) = (input.start_ps, input.capture_end_ps);
     let rx_mode = match mode {
         HansMode::Normal(channel) => hans::rx::Mode::Normal { channel },
         HansMode::Vote3 => hans::rx::Mode::Vote3 {
@@ -549,25 +431,15 @@ pub fn hans(
                 message: e.to_string(),
             }
         })?;
-    // `chunks[n - 1]` is channel n's ring; normal mode read only its one channel.
-    let first_ch = match mode {
-        HansMode::Normal(n) => usize::from(n.saturating_sub(1)),
-        _ => 0,
-    };
-    let words = rings.first().map_or(0, Vec::len);
-    let word_ps = 16.0 * 1e12 / fs;
+    let words = input.words();
+    let word_ps = input.word_ps();
     let frame_ps = hans::FRAME_BITS as f64 * 1e12 / f64::from(hans::rx::BIT_RATE_HZ);
     let mut out = Vec::new();
     let mut sum = Summary::default();
     let mut progress = super::encode::Progress::new("decode", words);
     let mut last_frame_ns: Option<u64> = None;
     for i in 0..words {
-        let mut chunks: [&[u16]; hans::rx::CHANNELS] = [&[]; hans::rx::CHANNELS];
-        for (k, ring) in rings.iter().enumerate() {
-            if let (Some(slot), Some(w)) = (chunks.get_mut(first_ch + k), ring.get(i..=i)) {
-                *slot = w;
-            }
-        }
+        let chunks = input.chunks(i);
         let mut events = Vec::new();
         rx.push(&chunks, &mut |e| events.push(e));
         if events.is_empty() {
@@ -684,20 +556,14 @@ fn hans_record(
     }
 }
 
-/// Backchannel: the `back` line -> UART bytes -> [`Parser`] -> records.
+/// Backchannel: UART frames of the `back` line ([`capture::uart_line`]) ->
+/// [`Parser`] -> records.
 ///
 /// Records: every packet the parser delivers, plus the SYNC packet behind each resync
 /// (the parser reports that one as a resync event, the format lists it as a packet);
 /// errors for lost sync, for a resync that dropped bytes, and for UART framing errors
 /// (the byte is still passed on, as the UART's data register would).
-pub fn back(wave: &Waveform, baud: f64) -> Result<(Vec<BackRecord>, Summary), SimError> {
-    let line = wave
-        .get(names::BACK)
-        .ok_or_else(|| crate::line::LineError::MissingSignal {
-            name: names::BACK.to_owned(),
-            available: wave.names(),
-        })?;
-    let frames = uart::uart_decode(line, baud)?;
+pub fn back(frames: Vec<UartFrame>) -> (Vec<BackRecord>, Summary) {
     let mut parser = Parser::new();
     let mut times: Vec<Ps> = Vec::with_capacity(frames.len());
     let mut out = Vec::new();
@@ -756,5 +622,5 @@ pub fn back(wave: &Waveform, baud: f64) -> Result<(Vec<BackRecord>, Summary), Si
     let stats = parser.stats();
     sum.resyncs = stats.resyncs;
     sum.dropped = stats.dropped_bytes;
-    Ok((out, sum))
+    (out, sum)
 }

@@ -5,14 +5,22 @@
 //! - [`jsonl`] — the JSON-lines formats (one record per frame / packet), parse and print;
 //! - [`generate`] — test patterns -> records, and the impairment options;
 //! - [`encode`] — records -> waveform (the path `generate` and `encode` share);
-//! - [`decode`] — capture -> records (backchannel now; the forward protocols plug in
-//!   their line-level receivers there);
+//! - [`capture`] — capture -> the firmware's receive DMA buffers (for `decode` and
+//!   `bridge`);
+//! - [`decode`] — capture -> the `shared` receivers -> records;
+//! - [`bridge`] — the whole bridge ([`crate::pipeline`]) on a capture, written to an
+//!   output directory;
+//! - [`demo`] — the no-argument demo (XY2-100 controller -> HANS-100 head, a line
+//!   breaking halfway);
 //! - [`cli`] — the command line (clap) and the commands.
 //!
 //! Signals in files use the default names of [`names`]; `--map ROLE=NAME` renames them.
 
+pub mod bridge;
+pub mod capture;
 pub mod cli;
 pub mod decode;
+pub mod demo;
 pub mod encode;
 pub mod generate;
 pub mod jsonl;
@@ -63,6 +71,10 @@ pub mod names {
     pub const HANS: [&str; 5] = ["ch1", "ch2", "ch3", "ch4", "ch5"];
     /// XY3-100 backchannel UART line.
     pub const BACK: &str = "back";
+    /// XY2-100 / HANS-100 STATUS line (head -> controller).
+    pub const STATUS: &str = "status";
+    /// The bridge's laser gate output (in `bridge`'s head-side file).
+    pub const LASER_GATE: &str = "laser_gate";
 }
 
 /// Everything that can stop a command. Each one ends the tool with a one-line message
@@ -98,13 +110,15 @@ pub enum SimError {
         /// What is wrong.
         message: String,
     },
-    /// The command needs code that is not merged yet.
-    NotAvailable {
-        /// What was asked for.
-        what: String,
-        /// What it waits for.
-        needs: &'static str,
+    /// The bridge configuration file does not parse or does not validate.
+    Config {
+        /// The file.
+        path: String,
+        /// What is wrong, naming the key.
+        message: String,
     },
+    /// The bridge pipeline refused its set-up or its input.
+    Bridge(String),
 }
 
 impl fmt::Display for SimError {
@@ -117,9 +131,8 @@ impl fmt::Display for SimError {
             Self::Io { path, message } => write!(f, "{path}: {message}"),
             Self::Json { line, message } => write!(f, "line {line}: {message}"),
             Self::BadOption { option, message } => write!(f, "{option}: {message}"),
-            Self::NotAvailable { what, needs } => {
-                write!(f, "{what} is not available yet: it needs {needs}")
-            }
+            Self::Config { path, message } => write!(f, "{path}: {message}"),
+            Self::Bridge(m) => write!(f, "bridge: {m}"),
         }
     }
 }

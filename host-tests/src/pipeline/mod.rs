@@ -1,0 +1,365 @@
+//! The whole bridge on the host: controller-side DMA buffers in, head-side DMA
+//! buffers out, and the status path back, through exactly the `shared` code the
+//! firmware runs (receivers, [`Bridge`], transmitters, status receivers/senders).
+//!
+//! # The synchronous core: [`Pipeline`]
+//! ```text
+//! controller lines (DMA buffers, README "DMA buffer layouts")
+//!   -> Pipeline::feed(now_ns, ControllerInput::{Xy2, Xy3, Hans})
+//!      -> xy2::rx / xy3::rx / hans::rx  -> LineEvents -> Bridge::on_line_event
+//!   -> Pipeline::run_until(now_ns): output slots -> Bridge::tick -> xy2::tx /
+//!      xy3::tx (BSRR words) / hans ring (hans::tx) -> HeadOutput
+//! head status lines
+//!   -> Pipeline::feed_status(now_ns, HeadStatusInput::{Xy2Level, Xy2Word, Xy3Back,
+//!      HansStatus}) -> debouncer / status-word receiver / backchannel parser /
+//!      HANS STATUS receiver -> the head's HeadStatus, copied into the bridge
+//!      (Bridge::head_status_mut) + status_seen, as the firmware's status tasks do
+//!   -> controller status (every 10 us): XY2 STATUS level changes, XY2 status words
+//!      (one per controller frame), XY3 backchannel bytes (Bridge::xy3_back_poll, a
+//!      UART at the controller-side rate), HANS STATUS frames (a second hans ring)
+//!      -> ControllerStatus
+//! ```
+//! Time is the caller's: every call carries `now_ns` (monotonic, nanoseconds). All
+//! events of one [`Pipeline::feed`] call are stamped with its `now_ns` (the moment
+//! the firmware would have the buffer: a DMA half, or one sample when fed finely;
+//! [`Pipeline::feed_spread`] spreads a DMA half's events over the following span
+//! as the firmware's bridge loop does);
+//! before they are applied, every output slot due before `now_ns` is computed, so
+//! the output never sees the future.
+//!
+//! # Output timing
+//! - **Free-running**: slot `k` plays from `k / frame_rate_hz` (first slot at 0) and
+//!   is computed [`Options::lead_slots`] slot periods earlier (an XY2-100 / XY3-100
+//!   slot must be in the ring before the DMA reaches it); HANS-100 heads use the
+//!   firmware's ring ([`shared::hans::tx::Transmitter`], written
+//!   [`shared::hans::tx::LEAD_SLOTS`] slots ahead) and the lead is that.
+//! - **Slaved**: each frame the bridge forwards from `on_line_event` starts at the
+//!   first output tick at least [`Options::slaved_lead_ns`] after its input event
+//!   (later if the previous frame is still playing); the fail-safe frames (hold,
+//!   park) are still clocked at the configured rate, as the engine specifies.
+//! - As in the firmware (`firmware/tasks/line.rs`): every slot is idle until the
+//!   bridge was first `Running` (no park frames before the controller spoke), and a
+//!   frame the head cannot take (an axis without a position, a driven Z line without
+//!   Z) is an idle slot, never a guessed frame.
+//!
+//! The record of every frame sent ([`SentFrame`]), the laser gate and link state
+//! changes are kept for tests; [`HeadOutput::to_waveform`] and the
+//! [`ControllerStatus`] helpers turn the buffers into waveforms (`crate::line`).
+//!
+//! # Parts
+//! - [`Pipeline`] = controller-side receiver + head-side status receiver + [`Core`]
+//!   (bridge, output clock and encoder, controller-side status);
+//! - [`tasks`]: the same parts as the firmware's task graph (embassy-sync channels,
+//!   simulated clock), tested to give the same output;
+//! - [`stimulus`]: controller signals from `shared`'s transmitters, waveforms ->
+//!   time-stamped DMA buffers, head status stimuli;
+//! - [`check`]: independent decoding of the head-side output, expected values;
+//! - [`latency`]: the added latency per pairing (bin `pipeline-latency`).
+
+pub mod check;
+mod core;
+mod ctrl_status;
+mod head_status;
+mod input;
+pub mod latency;
+mod output;
+pub mod stimulus;
+pub mod tasks;
+
+use std::fmt;
+
+pub use self::core::Core;
+pub use ctrl_status::{BackByte, ControllerStatus};
+pub use output::{HeadOutput, SentFrame, HEAD_PINS_XY2, HEAD_PINS_XY3};
+
+use shared::bridge::{Bridge, Config, ConfigError, Counters, LinkState};
+use shared::model::LineEvent;
+
+/// Modelling choices of the pipeline that the configuration does not fix.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Options {
+    /// HANS-100 controller input: the oversampling clock (37.5..=50 MHz).
+    pub hans_sample_hz: u32,
+    /// HANS-100 head STATUS input: its oversampling clock (the firmware's TIM3 makes
+    /// 40 MHz).
+    pub hans_status_sample_hz: u32,
+    /// Free-running XY2-100 / XY3-100 output: slot periods between computing a slot
+    /// and playing it (1 = the slot is written during the slot before it).
+    pub lead_slots: u32,
+    /// Slaved output: the earliest start of an output frame after its input event
+    /// (decode + encode + DMA set-up time), ns.
+    pub slaved_lead_ns: u64,
+    /// XY2-100 head STATUS level: consecutive equal samples before a change counts.
+    pub status_debounce: u16,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            hans_sample_hz: 37_500_000,
+            hans_status_sample_hz: 40_000_000,
+            lead_slots: 1,
+            slaved_lead_ns: 1_000,
+            status_debounce: 3,
+        }
+    }
+}
+
+/// Why the pipeline cannot be built or fed.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PipelineError {
+    /// The bridge configuration is invalid.
+    Config(ConfigError),
+    /// A receiver or transmitter refused its set-up (message from `shared`).
+    Setup(String),
+    /// Input of another protocol than the configured one.
+    WrongInput {
+        /// What the configuration expects.
+        expected: &'static str,
+        /// What was fed.
+        got: &'static str,
+    },
+    /// Input buffers that break the receiver's contract (line count, lengths).
+    BadInput(String),
+}
+
+impl fmt::Display for PipelineError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Config(e) => write!(f, "configuration: {e}"),
+            Self::Setup(m) => write!(f, "set-up: {m}"),
+            Self::WrongInput { expected, got } => {
+                write!(f, "input is {got}, the configuration expects {expected}")
+            }
+            Self::BadInput(m) => write!(f, "bad input buffers: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for PipelineError {}
+
+/// One chunk of controller-side DMA buffers (README "DMA buffer layouts").
+#[derive(Debug, Clone, Copy)]
+pub enum ControllerInput<'a> {
+    /// XY2-100: port samples, one `u16` per CLK falling edge; pins as
+    /// [`CONTROLLER_PINS_XY2`].
+    Xy2(&'a [u16]),
+    /// XY3-100: bytes per received line (X, Y, then Z when `z.source = "input"`), equal
+    /// lengths, and the X ring's byte counts at SYNC rising edges (count from 0).
+    Xy3 {
+        /// One slice per line, axis order.
+        lines: &'a [&'a [u8]],
+        /// Frame end positions.
+        ends: &'a [u32],
+    },
+    /// HANS-100: the `u16` ring words of channels 1..=5 (index 0 = CH1), MSB first =
+    /// earliest sample; channels the decode mode does not use may be empty.
+    Hans([&'a [u16]; 5]),
+}
+
+impl ControllerInput<'_> {
+    fn name(&self) -> &'static str {
+        match self {
+            Self::Xy2(_) => "XY2-100",
+            Self::Xy3 { .. } => "XY3-100",
+            Self::Hans(_) => "HANS-100",
+        }
+    }
+}
+
+/// The controller-side XY2-100 port bits (the firmware's port G wiring).
+pub const CONTROLLER_PINS_XY2: crate::line::sample::PinMap = crate::line::sample::PinMap {
+    sync: 0,
+    x: 1,
+    y: 2,
+    z: Some(3),
+    status: None,
+};
+
+/// One chunk of head-side status buffers.
+#[derive(Debug, Clone, Copy)]
+pub enum HeadStatusInput<'a> {
+    /// XY2-100 STATUS level samples (`true` = line high), in time order, all taken
+    /// at about `now_ns`; each counts as the head's status seen.
+    Xy2Level(&'a [bool]),
+    /// XY2-100 STATUS word samples: one `u16` per output bit from the first output
+    /// tick on (bit 0 = STATUS), aligned with the free-running output frames
+    /// (`shared::xy2::StatusWordReceiver`, offset 1).
+    Xy2Word(&'a [u16]),
+    /// XY3-100 backchannel bytes from the UART.
+    Xy3Back(&'a [u8]),
+    /// HANS-100 STATUS line: `u16` ring words of its oversampling SPI.
+    HansStatus(&'a [u16]),
+}
+
+/// A change of the bridge's link state or laser gate, with its time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Change<T> {
+    /// When (ns).
+    pub t_ns: u64,
+    /// The new value.
+    pub value: T,
+}
+
+/// Counts of what the pipeline itself saw (the bridge's own are in
+/// [`Bridge::counters`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PipelineCounters {
+    /// Controller-side receiver events handed to the bridge.
+    pub line_events: u64,
+    /// Of those, frames.
+    pub line_frames: u64,
+    /// Output slots computed.
+    pub slots: u64,
+    /// Output slots left idle (nothing to send, or the head could not take it).
+    pub idle_slots: u64,
+    /// Frames the head could not take (encode refused: a missing axis, ...).
+    pub encode_refused: u64,
+    /// Valid head status items (packets, frames, status words, level samples).
+    pub status_items: u64,
+    /// Head-side status faults (bad words, backchannel sync, bad STATUS frames).
+    pub status_faults: u64,
+}
+
+/// The synchronous pipeline (see the module docs): the controller-side receiver,
+/// the head-side status receiver and the [`Core`] (bridge, output, status out).
+pub struct Pipeline {
+    options: Options,
+    input: input::Input,
+    head_status: head_status::HeadStatusIn,
+    core: Core,
+}
+
+impl Pipeline {
+    /// A pipeline for `config` (validated) with the modelling `options`.
+    pub fn new(config: &Config, options: Options) -> Result<Pipeline, PipelineError> {
+        Ok(Pipeline {
+            input: input::Input::new(config, &options)?,
+            head_status: head_status::HeadStatusIn::new(config, &options)?,
+            core: Core::new(config, &options)?,
+            options,
+        })
+    }
+
+    /// The modelling options.
+    pub fn options(&self) -> &Options {
+        &self.options
+    }
+
+    /// The bridge, its output clock and the status producers.
+    pub fn core(&self) -> &Core {
+        &self.core
+    }
+
+    /// The bridge engine (counters, state, head status, alarms).
+    pub fn bridge(&self) -> &Bridge {
+        self.core.bridge()
+    }
+
+    /// The bridge's counters.
+    pub fn bridge_counters(&self) -> &Counters {
+        self.core.bridge().counters()
+    }
+
+    /// The pipeline's own counters.
+    pub fn counters(&self) -> &PipelineCounters {
+        self.core.counters()
+    }
+
+    /// The head-side output so far (a copy of the buffers).
+    pub fn head_output(&self) -> HeadOutput {
+        self.core.head_output()
+    }
+
+    /// Every frame written to the head so far, in order.
+    pub fn sent(&self) -> &[SentFrame] {
+        self.core.sent()
+    }
+
+    /// The controller-side status output so far (a copy).
+    pub fn controller_status(&self) -> ControllerStatus {
+        self.core.controller_status()
+    }
+
+    /// Link state changes (the first entry is the power-up `Safe` at 0).
+    pub fn states(&self) -> &[Change<LinkState>] {
+        self.core.states()
+    }
+
+    /// Laser gate changes (the first entry is "off" at 0).
+    pub fn gate(&self) -> &[Change<bool>] {
+        self.core.gate()
+    }
+
+    /// The laser gate now.
+    pub fn gate_on(&self) -> bool {
+        self.core.gate_on()
+    }
+
+    /// The rate the head's backchannel is expected at (XY3-100 heads; changes when a
+    /// forwarded BACK_RATE command went out).
+    pub fn head_back_rate(&self) -> shared::xy3::BackRate {
+        self.core.head_back_rate()
+    }
+
+    /// Time of the last call, ns.
+    pub fn now_ns(&self) -> u64 {
+        self.core.now_ns()
+    }
+
+    /// The time of the next thing the pipeline's own clocks do (an output slot or a
+    /// controller status step), ns.
+    pub fn next_deadline_ns(&self) -> u64 {
+        self.core.next_deadline_ns()
+    }
+
+    /// Runs the output and controller-status clocks for every step due before
+    /// `now_ns`. Times earlier than a previous call are taken as that call's time.
+    pub fn run_until(&mut self, now_ns: u64) {
+        self.core.run_until(now_ns);
+    }
+
+    /// Feeds one chunk of controller-side buffers at `now_ns` (see [`Pipeline`]).
+    pub fn feed(&mut self, now_ns: u64, chunk: ControllerInput<'_>) -> Result<(), PipelineError> {
+        let mut events: Vec<LineEvent> = Vec::new();
+        self.input.feed(chunk, &mut events)?;
+        self.core.line_events(now_ns, &events);
+        Ok(())
+    }
+
+    /// Like [`Pipeline::feed`] for a chunk holding many frames (a DMA half that
+    /// arrived at `now_ns`): its receiver events are applied in order, spread evenly
+    /// over `[now_ns, now_ns + span_ns)` (event `k` of `n` at `now_ns + span_ns * k /
+    /// n`), as the firmware's bridge loop spreads a half's events over the output
+    /// slots of its next batch. A free-running output then carries consecutive
+    /// frames in consecutive slots instead of only the newest of the chunk. Later
+    /// calls must not start before the last event's time.
+    pub fn feed_spread(
+        &mut self,
+        now_ns: u64,
+        span_ns: u64,
+        chunk: ControllerInput<'_>,
+    ) -> Result<(), PipelineError> {
+        let mut events: Vec<LineEvent> = Vec::new();
+        self.input.feed(chunk, &mut events)?;
+        let n = events.len().max(1) as u64;
+        for (k, e) in events.iter().enumerate() {
+            let t = now_ns + span_ns * k as u64 / n;
+            self.core.line_events(t, std::slice::from_ref(e));
+        }
+        Ok(())
+    }
+
+    /// Feeds one chunk of head-side status buffers at `now_ns`.
+    pub fn feed_status(
+        &mut self,
+        now_ns: u64,
+        chunk: HeadStatusInput<'_>,
+    ) -> Result<(), PipelineError> {
+        let mut faults = Vec::new();
+        let seen = self.head_status.feed(now_ns, chunk, &mut faults)?;
+        self.core
+            .head_status(now_ns, seen, self.head_status.status(), &faults);
+        Ok(())
+    }
+}

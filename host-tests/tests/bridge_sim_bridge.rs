@@ -1,0 +1,1087 @@
+//! `bridge-sim bridge` and the demo, through the built binary: generated controller
+//! captures for several pairings go through the whole bridge; the head-side file is
+//! decoded back with `decode` and compared with what `generate` says it sent (resized
+//! with the model's rule, axis-mapped by hand), never with the bridge's own record.
+//! Plus the status path (a head status capture -> the controller's status line), bad
+//! input, and the demo.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use host_tests::sim::demo::{hans_head_status, HEALTHY};
+use host_tests::sim::jsonl::{self, BackRecord, Channel, ForwardRecord, HansRecord};
+use host_tests::vcd_io::{read_vcd_file, write_vcd_file, NameMap, WriteTimescale};
+use host_tests::wave::{Signal, Waveform};
+use shared::hans::GalvoAlarms;
+use shared::model::Position;
+use shared::xy2;
+
+const BIN: &str = env!("CARGO_BIN_EXE_bridge-sim");
+
+fn dir(test: &str) -> PathBuf {
+    let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("bridge_sim_bridge_{test}"));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+struct Out {
+    code: i32,
+    stdout: String,
+    stderr: String,
+}
+
+fn run_in(cwd: &Path, args: &[&str]) -> Out {
+    let o = Command::new(BIN)
+        .current_dir(cwd)
+        .args(args)
+        .output()
+        .unwrap();
+    let out = Out {
+        code: o.status.code().unwrap_or(-1),
+        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
+        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
+    };
+    assert!(!out.stderr.contains("panicked"), "panic: {}", out.stderr);
+    out
+}
+
+fn ok_in(cwd: &Path, args: &[&str]) -> Out {
+    let o = run_in(cwd, args);
+    assert_eq!(o.code, 0, "{args:?}: {}", o.stderr);
+    o
+}
+
+/// `generate` in `d`; returns the frames sent.
+fn generate(d: &Path, name: &str, args: &[&str]) -> Vec<String> {
+    let vcd = format!("{name}.vcd");
+    let jl = format!("{name}.jsonl");
+    let mut a = vec!["generate", "--output", &vcd, "--frames-out", &jl];
+    a.extend_from_slice(args);
+    ok_in(d, &a);
+    std::fs::read_to_string(d.join(jl))
+        .unwrap()
+        .lines()
+        .map(str::to_owned)
+        .collect()
+}
+
+fn bridge(d: &Path, config: &str, input: &str, extra: &[&str]) -> Out {
+    std::fs::write(d.join("bridge.toml"), config).unwrap();
+    let mut a = vec![
+        "bridge",
+        "--config",
+        "bridge.toml",
+        "--input",
+        input,
+        "--output-dir",
+        "out",
+    ];
+    a.extend_from_slice(extra);
+    ok_in(d, &a)
+}
+
+/// A counter from the bridge's printout (`name N`).
+fn counter(stderr: &str, name: &str) -> u64 {
+    let at = stderr
+        .find(&format!("{name} "))
+        .unwrap_or_else(|| panic!("no `{name}` in {stderr}"));
+    stderr[at + name.len() + 1..]
+        .split(|c: char| !c.is_ascii_digit())
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap()
+}
+
+/// An X/Y position of a generated or decoded forward / HANS record, as a position.
+fn xy_forward(r: &ForwardRecord) -> Option<(Position, Position)> {
+    let p = |l: &str| match r.channel(l) {
+        Some(Channel::Pos { pos, bits }) => Position::from_raw(*pos, *bits).ok(),
+        _ => None,
+    };
+    Some((p("x")?, p("y")?))
+}
+
+/// Decodes the head-side file as `head` (xy2 / xy3 / hans): X/Y as head-width raw
+/// values, and the number of error records.
+fn head_positions(d: &Path, head: &str, bits: u8) -> (Vec<(u32, u32)>, usize) {
+    let mut args = vec!["decode", "--protocol", head, "--input", "out/head.vcd"];
+    if head == "xy2" && bits == 18 {
+        args.extend(["--xy2-mode", "18"]);
+    }
+    let o = ok_in(d, &args);
+    let mut pos = Vec::new();
+    let mut errors = 0;
+    if head == "hans" {
+        for (_, r) in jsonl::parse::<HansRecord>(&o.stdout).unwrap() {
+            match r {
+                HansRecord::Frame { data, .. } => pos.push((data[0], data[1])),
+                HansRecord::Error { .. } => errors += 1,
+            }
+        }
+    } else {
+        for (_, r) in jsonl::parse::<ForwardRecord>(&o.stdout).unwrap() {
+            match xy_forward(&r) {
+                Some((x, y)) => {
+                    assert_eq!(x.bits(), bits);
+                    pos.push((x.to_raw(bits), y.to_raw(bits)));
+                }
+                None => errors += 1,
+            }
+        }
+    }
+    (pos, errors)
+}
+
+/// What a head-side file must show.
+struct Expect {
+    /// The head's position width.
+    bits: u8,
+    /// `axes.swap_xy`.
+    swap: bool,
+    /// Frames of the streams the receivers need to lock (HANS-100 in or out: about
+    /// two each).
+    skip: usize,
+    /// The bridge's `repeated` counter.
+    repeated: u64,
+}
+
+/// Frames the head may stop short of the last one sent (the tail of the run).
+const TAIL: usize = 3;
+
+/// The head must show exactly the controller's frames from the `RECOVERY`-th on,
+/// resized (and swapped), in order, each at least once (a repeat is the previous
+/// frame again), ending within the last [`TAIL`] frames.
+fn check_forwarded(sent: &[(Position, Position)], got: &[(u32, u32)], e: &Expect) {
+    let (bits, swap, recovery, skip_head, tail, repeated) =
+        (e.bits, e.swap, RECOVERY, e.skip, TAIL, e.repeated);
+    let want: Vec<(u32, u32)> = sent
+        .iter()
+        .map(|(x, y)| {
+            let (x, y) = if swap { (y, x) } else { (x, y) };
+            (x.to_raw(bits), y.to_raw(bits))
+        })
+        .collect();
+    let first = want
+        .iter()
+        .position(|w| Some(w) == got.first())
+        .unwrap_or_else(|| panic!("first head frame {:?} was never sent", got.first()));
+    assert!(
+        first + 1 >= recovery && first < recovery + skip_head,
+        "first forwarded frame is controller frame {} (recovery {recovery})",
+        first + 1
+    );
+    let mut k = first;
+    let mut repeats = 0u64;
+    for (i, g) in got.iter().enumerate().skip(1) {
+        if *g == want[k] {
+            repeats += 1;
+            continue;
+        }
+        k += 1;
+        assert_eq!(*g, want[k], "head frame {i}: not the next controller frame");
+    }
+    assert!(
+        k + tail >= want.len(),
+        "head stops at frame {k} of {}",
+        want.len()
+    );
+    // Every repeat the head shows was counted by the bridge (the bridge may repeat
+    // a few more at the end, after the last frame the decoder could close).
+    assert!(
+        repeats <= repeated,
+        "{repeats} repeats seen, {repeated} counted"
+    );
+}
+
+fn sent_positions(lines: &[String]) -> Vec<(Position, Position)> {
+    lines
+        .iter()
+        .map(|l| {
+            let r: ForwardRecord = serde_json::from_str(l).unwrap();
+            xy_forward(&r).unwrap()
+        })
+        .collect()
+}
+
+fn sent_hans(lines: &[String]) -> Vec<(Position, Position)> {
+    lines
+        .iter()
+        .map(|l| match serde_json::from_str::<HansRecord>(l).unwrap() {
+            HansRecord::Frame { data, .. } => (
+                Position::from_raw(data[0], 20).unwrap(),
+                Position::from_raw(data[1], 20).unwrap(),
+            ),
+            HansRecord::Error { .. } => panic!("generate made an error frame"),
+        })
+        .collect()
+}
+
+const RECOVERY: usize = 10;
+
+/// The X/Y positions `generate` sent.
+type Sent = [(Position, Position)];
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn config(controller: &str, head: &str, extra: &str) -> String {
+    format!(
+        "[controller]\nprotocol = \"{controller}\"\n[head]\nprotocol = \"{head}\"\n\
+         [failsafe]\nrecovery_frames = {RECOVERY}\nstatus_timeout_us = 0\n{extra}"
+    )
+}
+
+#[test]
+fn xy2_to_xy3_and_hans_heads() {
+    let d = dir("xy2");
+    let sent = sent_positions(&generate(
+        &d,
+        "in",
+        &[
+            "--protocol",
+            "xy2",
+            "--pattern",
+            "circle",
+            "--frames",
+            "300",
+        ],
+    ));
+    for (head, bits, skip, extra) in [
+        ("xy3", 20, 1, ""),
+        ("xy3", 26, 1, "[head.xy3]\nframe_bits = 32\n"),
+        ("hans", 20, 3, ""),
+        // Slaved: one output frame per input frame, never a repeat.
+        ("xy3", 20, 1, "[output]\ntiming = \"slaved\"\n"),
+    ] {
+        let o = bridge(&d, &config("xy2", head, extra), "in.vcd", &[]);
+        assert_eq!(counter(&o.stderr, "frames ok"), 300, "{}", o.stderr);
+        assert_eq!(counter(&o.stderr, "check failures"), 0);
+        assert!(o.stderr.contains("link: Safe at 0.000 ms, Running at"));
+        let (got, errors) = head_positions(&d, head, bits);
+        assert_eq!(errors, 0, "{head}");
+        let e = Expect {
+            bits,
+            swap: false,
+            skip,
+            repeated: counter(&o.stderr, "repeated"),
+        };
+        check_forwarded(&sent, &got, &e);
+        // The head-side file names its signals as documented.
+        let names = if head == "hans" {
+            "ch1 ch2 ch3 ch4 ch5 laser_gate"
+        } else {
+            "clk sync x y z laser_gate"
+        };
+        assert!(
+            o.stderr.contains(&format!("out/head.vcd ({names})")),
+            "{}",
+            o.stderr
+        );
+    }
+}
+
+#[test]
+fn xy3_and_hans_controllers_with_axis_map() {
+    let d = dir("xy3_hans");
+    // XY3-100 (24-bit, 2.4 MHz: 96 kHz frames) -> XY2-100 16-bit: narrowing, the
+    // output faster than the input (repeats), X and Y swapped.
+    let sent = sent_positions(&generate(
+        &d,
+        "xy3",
+        &[
+            "--protocol",
+            "xy3",
+            "--pattern",
+            "random",
+            "--frames",
+            "300",
+        ],
+    ));
+    let o = bridge(
+        &d,
+        &config("xy3", "xy2", "[axes]\nswap_xy = true\n"),
+        "xy3.vcd",
+        &[],
+    );
+    assert_eq!(counter(&o.stderr, "frames ok"), 300, "{}", o.stderr);
+    let repeated = counter(&o.stderr, "repeated");
+    assert!(
+        repeated >= 5,
+        "a 96 kHz input into 100 kHz slots repeats: {repeated}"
+    );
+    let (got, errors) = head_positions(&d, "xy2", 16);
+    assert_eq!(errors, 0);
+    let e = Expect {
+        bits: 16,
+        swap: true,
+        skip: 1,
+        repeated,
+    };
+    check_forwarded(&sent, &got, &e);
+
+    // HANS-100 (super mode) -> XY3-100 32-bit: widening 20 -> 26 bits.
+    let sent = sent_hans(&generate(
+        &d,
+        "hans",
+        &[
+            "--protocol",
+            "hans",
+            "--pattern",
+            "raster",
+            "--frames",
+            "300",
+        ],
+    ));
+    let o = bridge(
+        &d,
+        &config(
+            "hans",
+            "xy3",
+            "[controller.hans]\ndecode = \"super\"\n[head.xy3]\nframe_bits = 32\n",
+        ),
+        "hans.vcd",
+        &["--hans-oversample", "4"],
+    );
+    // The HANS-100 receiver needs about two frames to lock.
+    assert!(counter(&o.stderr, "frames ok") >= 297, "{}", o.stderr);
+    let (got, errors) = head_positions(&d, "xy3", 26);
+    assert_eq!(errors, 0);
+    let e = Expect {
+        bits: 26,
+        swap: false,
+        skip: 3,
+        repeated: counter(&o.stderr, "repeated"),
+    };
+    check_forwarded(&sent, &got, &e);
+}
+
+#[test]
+fn the_other_pairings() {
+    let d = dir("others");
+    let xy3 = sent_positions(&generate(
+        &d,
+        "xy3",
+        &[
+            "--protocol",
+            "xy3",
+            "--pattern",
+            "random",
+            "--frames",
+            "300",
+        ],
+    ));
+    let hans = sent_hans(&generate(
+        &d,
+        "hans",
+        &[
+            "--protocol",
+            "hans",
+            "--pattern",
+            "random",
+            "--frames",
+            "300",
+        ],
+    ));
+    // (controller, capture, frames sent, head, head bits, extra keys, frames the
+    // receivers need to lock: HANS-100 in and out take about two each).
+    let cases: [(&str, &str, &Sent, &str, u8, &str, usize); 4] = [
+        (
+            "xy3",
+            "xy3.vcd",
+            &xy3,
+            "xy3",
+            26,
+            "[head.xy3]\nframe_bits = 32\n",
+            1,
+        ),
+        ("xy3", "xy3.vcd", &xy3, "hans", 20, "", 3),
+        (
+            "hans",
+            "hans.vcd",
+            &hans,
+            "xy2",
+            18,
+            "[head.xy2]\nmode = \"extended18\"\nenhanced_commands = false\n",
+            3,
+        ),
+        ("hans", "hans.vcd", &hans, "hans", 20, "", 6),
+    ];
+    for (ctrl, input, sent, head, bits, extra, skip) in cases {
+        let o = bridge(&d, &config(ctrl, head, extra), input, &[]);
+        assert!(counter(&o.stderr, "frames ok") >= 298, "{}", o.stderr);
+        assert_eq!(counter(&o.stderr, "check failures"), 0, "{}", o.stderr);
+        let (got, errors) = head_positions(&d, head, bits);
+        assert_eq!(errors, 0, "{ctrl} -> {head}");
+        assert!(got.len() >= 280, "{ctrl} -> {head}: {} frames", got.len());
+        let e = Expect {
+            bits,
+            swap: false,
+            skip,
+            repeated: counter(&o.stderr, "repeated"),
+        };
+        check_forwarded(sent, &got, &e);
+    }
+}
+
+/// `fixtures/xy2_capture_10ns.vcd` (a logic analyser's conventions: 10 ns timescale,
+/// signals D0..D3, other signals, the clock stopping between two frames, no Z) through
+/// an XY2-100 -> XY2-100 bridge: the position, then the enhanced command passed on
+/// X (a one-off: the next slots hold X's last position), each slot as expected.
+#[test]
+fn capture_from_another_tool_through_the_bridge() {
+    let d = dir("fixture");
+    let vcd = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/xy2_capture_10ns.vcd");
+    let cfg = "[controller]\nprotocol = \"xy2\"\n[head]\nprotocol = \"xy2\"\n\
+               [z]\nsource = \"none\"\n[failsafe]\nrecovery_frames = 1\n";
+    let map = [
+        "--map", "clk=D0", "--map", "sync=D1", "--map", "x=D2", "--map", "y=D3",
+    ];
+    let o = bridge(&d, cfg, vcd.to_str().unwrap(), &map);
+    assert_eq!(counter(&o.stderr, "frames ok"), 2, "{}", o.stderr);
+    assert_eq!(counter(&o.stderr, "(forwarded"), 1, "{}", o.stderr);
+    assert!(o.stderr.contains("out/head.vcd (clk sync x y laser_gate)"));
+    let dec = ok_in(
+        &d,
+        &["decode", "--protocol", "xy2", "--input", "out/head.vcd"],
+    );
+    let want = concat!(
+        r#"{"t_ns":30000,"x":{"pos":0,"bits":16},"y":{"pos":32768,"bits":16}}"#,
+        "\n",
+        r#"{"t_ns":40000,"x":{"cmd":4660},"y":{"pos":65535,"bits":16}}"#,
+        "\n",
+        r#"{"t_ns":50000,"x":{"pos":0,"bits":16},"y":{"pos":65535,"bits":16}}"#,
+        "\n",
+        r#"{"t_ns":60000,"x":{"pos":0,"bits":16},"y":{"pos":65535,"bits":16}}"#,
+        "\n",
+    );
+    assert_eq!(dec.stdout, want);
+}
+
+#[test]
+fn broken_line_is_never_forwarded_then_hold_and_park() {
+    let d = dir("broken");
+    // 3000 XY2-100 frames (30 ms); Y opens at 10 ms: every frame from then on fails.
+    let sent = sent_positions(&generate(
+        &d,
+        "in",
+        &[
+            "--protocol",
+            "xy2",
+            "--pattern",
+            "random",
+            "--frames",
+            "3000",
+            "--broken",
+            "y,10000",
+        ],
+    ));
+    let o = bridge(&d, &config("xy2", "xy3", ""), "in.vcd", &[]);
+    assert!(counter(&o.stderr, "check failures") >= 1999, "{}", o.stderr);
+    assert_eq!(counter(&o.stderr, "input losses"), 1);
+    // Lost 1 ms after the last good frame, parked 10 ms later.
+    assert!(
+        o.stderr.contains("Holding at 11.000 ms, Safe at 21.000 ms"),
+        "{}",
+        o.stderr
+    );
+    assert!(o.stderr.contains("laser gate: off at 0.000 ms, on at"));
+    assert!(o.stderr.contains("off at 11.000 ms"), "{}", o.stderr);
+    let (got, errors) = head_positions(&d, "xy3", 20);
+    assert_eq!(errors, 0);
+    let want: Vec<(u32, u32)> = sent
+        .iter()
+        .map(|(x, y)| (x.to_raw(20), y.to_raw(20)))
+        .collect();
+    let valid = &want[..999];
+    let park = (0x8_0000, 0x8_0000);
+    let last_valid = *got.iter().rfind(|g| valid.contains(g)).unwrap();
+    let mut parked = 0;
+    for g in &got {
+        // Never anything but a valid controller frame or the park position.
+        assert!(valid.contains(g) || *g == park, "{g:?} was never sent");
+        parked += usize::from(*g == park);
+    }
+    // The head holds the last valid position, then parks for the last ~9 ms.
+    assert_eq!(last_valid, *valid.last().unwrap());
+    assert!((880..=920).contains(&parked), "{parked} park frames");
+    assert_eq!(got.last(), Some(&park));
+}
+
+#[test]
+fn head_status_reaches_the_controller() {
+    let d = dir("status");
+    generate(
+        &d,
+        "in",
+        &[
+            "--protocol",
+            "xy2",
+            "--pattern",
+            "circle",
+            "--frames",
+            "400",
+        ],
+    );
+    // A healthy HANS-100 head: the controller's STATUS (level, low = OK) goes OK once
+    // the link runs, and the gate opens.
+    let status = d.join("status.vcd");
+    write_vcd_file(
+        &status,
+        &hans_head_status(400, HEALTHY).unwrap(),
+        WriteTimescale::Ps,
+    )
+    .unwrap();
+    let cfg = "[controller]\nprotocol = \"xy2\"\n[head]\nprotocol = \"hans\"\n\
+               [failsafe]\nrecovery_frames = 10\n";
+    let o = bridge(&d, cfg, "in.vcd", &["--head-status", "status.vcd"]);
+    assert!(
+        counter(&o.stderr, "head status received:") >= 390,
+        "{}",
+        o.stderr
+    );
+    assert_eq!(counter(&o.stderr, "head status losses"), 0);
+    let level = read_vcd_file(
+        &d.join("out/controller-status.vcd"),
+        &["status"],
+        &NameMap::new(),
+    )
+    .unwrap();
+    let s = level.get("status").unwrap();
+    assert!(s.initial(), "fault (high) before the link runs");
+    assert!(!s.level_at(3_000_000_000), "OK at 3 ms");
+    assert!(o.stderr.contains("laser gate: off at 0.000 ms, on at"));
+
+    // The same head with a power alarm: the controller sees a fault all along and
+    // the gate never opens (laser.off_on_head_alarm).
+    let alarm = GalvoAlarms {
+        power: true,
+        ..HEALTHY
+    };
+    write_vcd_file(
+        &status,
+        &hans_head_status(400, alarm).unwrap(),
+        WriteTimescale::Ps,
+    )
+    .unwrap();
+    let o = bridge(&d, cfg, "in.vcd", &["--head-status", "status.vcd"]);
+    assert!(
+        o.stderr.contains("alarms at the end: power"),
+        "{}",
+        o.stderr
+    );
+    assert!(
+        o.stderr.contains("laser gate: off at 0.000 ms\n"),
+        "{}",
+        o.stderr
+    );
+    let level = read_vcd_file(
+        &d.join("out/controller-status.vcd"),
+        &["status"],
+        &NameMap::new(),
+    )
+    .unwrap();
+    assert!(level.get("status").unwrap().level_at(3_000_000_000));
+
+    // No status capture: STATUS_LOST once status_timeout_us has passed.
+    let cfg_short = format!("{cfg}status_timeout_us = 1000\n");
+    let o = bridge(&d, &cfg_short, "in.vcd", &[]);
+    assert_eq!(counter(&o.stderr, "head status losses"), 1, "{}", o.stderr);
+    assert!(o.stderr.contains("STATUS_LOST"), "{}", o.stderr);
+}
+
+/// An XY2-100 head's STATUS line sending `word` in every output frame period, in
+/// the geometry the bridge samples it: one sample per output bit (500 ns), the
+/// frame's first bit in sample 1 of each 20-sample period.
+fn xy2_status_word_line(word: xy2::StatusWord, periods: usize) -> Waveform {
+    let frame = word.to_frame(&xy2::LinkConfig::default());
+    let mut s = Signal::new("status", false);
+    for p in 0..periods {
+        for i in 0..20 {
+            let sample = (p * 20 + 1 + i) as u64;
+            s.push(sample * 500_000, frame >> (19 - i) & 1 != 0)
+                .unwrap();
+        }
+    }
+    let mut w = Waveform::new();
+    w.add(s).unwrap();
+    w
+}
+
+/// The status words on the controller's `status` line, read at the controller's
+/// own CLK falling edges, one per controller frame (20 samples ending in SYNC low).
+fn xy2_status_words_at_controller(d: &Path) -> Vec<Result<xy2::StatusWord, xy2::StatusError>> {
+    let ctrl = read_vcd_file(&d.join("in.vcd"), &["clk", "sync"], &NameMap::new()).unwrap();
+    let status = read_vcd_file(
+        &d.join("out/controller-status.vcd"),
+        &["status"],
+        &NameMap::new(),
+    )
+    .unwrap();
+    let (sync, line) = (ctrl.get("sync").unwrap(), status.get("status").unwrap());
+    let mut words = Vec::new();
+    let (mut acc, mut n) = (0u32, 0);
+    for t in ctrl.get("clk").unwrap().falling_edges() {
+        acc = (acc << 1 | u32::from(line.level_at(t))) & 0xF_FFFF;
+        n += 1;
+        if !sync.level_at(t) {
+            if n == 20 {
+                words.push(xy2::StatusWord::from_frame(
+                    acc,
+                    &xy2::LinkConfig::default(),
+                ));
+            }
+            n = 0;
+        }
+    }
+    words
+}
+
+#[test]
+fn xy2_status_words_both_ways() {
+    let d = dir("xy2_word");
+    generate(
+        &d,
+        "in",
+        &[
+            "--protocol",
+            "xy2",
+            "--pattern",
+            "circle",
+            "--frames",
+            "400",
+        ],
+    );
+    // The head reports an over-temperature in every word.
+    let hot = xy2::StatusWord {
+        temperature_ok: false,
+        ..xy2::StatusWord::ALL_OK
+    };
+    write_vcd_file(
+        &d.join("status.vcd"),
+        &xy2_status_word_line(hot, 400),
+        WriteTimescale::Ps,
+    )
+    .unwrap();
+    let cfg = config(
+        "xy2",
+        "xy2",
+        "[controller.xy2]\nstatus = \"word\"\n[head.xy2]\nstatus = \"word\"\n",
+    );
+    let o = bridge(&d, &cfg, "in.vcd", &["--head-status", "status.vcd"]);
+    assert!(
+        counter(&o.stderr, "head status received:") >= 390,
+        "{}",
+        o.stderr
+    );
+    assert!(
+        o.stderr.contains("alarms at the end: temperature"),
+        "{}",
+        o.stderr
+    );
+    assert!(
+        o.stderr.contains("laser gate: off at 0.000 ms\n"),
+        "{}",
+        o.stderr
+    );
+    // The controller reads a valid status word in every frame after the first:
+    // INPUT_LOST (power bit cleared) until the link runs, then the head's
+    // over-temperature.
+    let words = xy2_status_words_at_controller(&d);
+    assert_eq!(words.len(), 400);
+    let words: Vec<xy2::StatusWord> = words[1..].iter().map(|w| w.unwrap()).collect();
+    assert!(!words[0].power_ok);
+    let running = words.iter().position(|w| w.power_ok).unwrap();
+    assert!((8..=12).contains(&running), "running from frame {running}");
+    for w in &words[running..] {
+        assert_eq!(*w, hot);
+    }
+}
+
+/// The `laser gate:` timeline of the printout as (on, ms) pairs.
+fn gate_changes(stderr: &str) -> Vec<(bool, f64)> {
+    let line = stderr
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("laser gate: "))
+        .unwrap();
+    line.split(", ")
+        .map(|c| {
+            let (state, t) = c.split_once(" at ").unwrap();
+            (state == "on", t.trim_end_matches(" ms").parse().unwrap())
+        })
+        .collect()
+}
+
+#[test]
+fn xy3_head_backchannel_alarm_turns_the_gate_off() {
+    let d = dir("back");
+    generate(
+        &d,
+        "in",
+        &[
+            "--protocol",
+            "xy2",
+            "--pattern",
+            "circle",
+            "--frames",
+            "2000",
+        ],
+    );
+    // The head's backchannel as `generate` makes it: a cycle of status packets whose
+    // ERROR_STATE reports nothing at first, then an error code.
+    let packets: Vec<(u64, u8, Vec<u8>)> =
+        generate(&d, "back", &["--protocol", "xy3-back", "--frames", "10"])
+            .iter()
+            .map(|l| match serde_json::from_str::<BackRecord>(l).unwrap() {
+                BackRecord::Packet { t_ns, ty, payload } => (t_ns.unwrap(), ty, payload),
+                BackRecord::Error { .. } => panic!("generate made an error"),
+            })
+            .collect();
+    let (t_err, _, payload) = packets
+        .iter()
+        .find(|(_, ty, p)| *ty == 7 && p.iter().any(|&b| b != 0))
+        .unwrap();
+    // The packet is complete after its 3 + N bytes at 115200 baud.
+    let done_ms = (*t_err as f64 + (3 + payload.len()) as f64 * 10.0 / 115_200.0 * 1e9) / 1e6;
+    let o = bridge(
+        &d,
+        &config("xy2", "xy3", "[laser]\noff_on_head_alarm = true\n"),
+        "in.vcd",
+        &["--head-status", "back.vcd"],
+    );
+    assert_eq!(
+        counter(&o.stderr, "head status received:"),
+        packets.len() as u64,
+        "{}",
+        o.stderr
+    );
+    let gate = gate_changes(&o.stderr);
+    assert_eq!(gate.len(), 3, "{}", o.stderr);
+    assert!(gate[1].0 && !gate[2].0);
+    assert!(
+        gate[2].1 >= done_ms - 0.01 && gate[2].1 <= done_ms + 0.1,
+        "gate off at {} ms, the alarm arrived at {done_ms} ms",
+        gate[2].1
+    );
+    // The controller's STATUS level shows the fault from then on.
+    let level = read_vcd_file(
+        &d.join("out/controller-status.vcd"),
+        &["status"],
+        &NameMap::new(),
+    )
+    .unwrap();
+    let s = level.get("status").unwrap();
+    assert!(!s.level_at(((done_ms - 0.2) * 1e9) as u64));
+    assert!(s.level_at(((done_ms + 0.2) * 1e9) as u64));
+}
+
+#[test]
+fn controller_status_files_decode() {
+    let d = dir("ctrl_status");
+    // An XY3-100 controller gets the backchannel, which the `decode` backchannel
+    // parser takes without a single error: SYNC first, then the error state: DSP
+    // data error (code 2) while the link is not running, cleared once it runs.
+    generate(
+        &d,
+        "xy3",
+        &["--protocol", "xy3", "--pattern", "steps", "--frames", "300"],
+    );
+    let o = bridge(&d, &config("xy3", "xy2", ""), "xy3.vcd", &[]);
+    assert!(
+        o.stderr.contains("out/controller-status.vcd (back)"),
+        "{}",
+        o.stderr
+    );
+    let dec = ok_in(
+        &d,
+        &[
+            "decode",
+            "--protocol",
+            "xy3-back",
+            "--input",
+            "out/controller-status.vcd",
+        ],
+    );
+    let packets: Vec<(u8, String)> = jsonl::parse::<BackRecord>(&dec.stdout)
+        .unwrap()
+        .into_iter()
+        .map(|(_, p)| match p {
+            BackRecord::Packet { ty, payload, .. } => (ty, hex(&payload)),
+            BackRecord::Error { error, .. } => panic!("backchannel error: {error}"),
+        })
+        .collect();
+    assert_eq!(packets.first(), Some(&(0x41, String::new())), "{packets:?}");
+    let lost = packets.iter().position(|p| *p == (7, "0002".to_owned()));
+    let clear = packets.iter().position(|p| *p == (7, "00".to_owned()));
+    assert!(
+        matches!((lost, clear), (Some(a), Some(b)) if a < b),
+        "{packets:?}"
+    );
+
+    // A HANS-100 controller gets STATUS frames on `status`: decoded as channel 1.
+    generate(
+        &d,
+        "hans",
+        &[
+            "--protocol",
+            "hans",
+            "--pattern",
+            "circle",
+            "--frames",
+            "200",
+        ],
+    );
+    let o = bridge(&d, &config("hans", "xy3", ""), "hans.vcd", &[]);
+    assert!(
+        o.stderr.contains("out/controller-status.vcd (status)"),
+        "{}",
+        o.stderr
+    );
+    let dec = ok_in(
+        &d,
+        &[
+            "decode",
+            "--protocol",
+            "hans",
+            "--hans-mode",
+            "normal:1",
+            "--map",
+            "ch1=status",
+            "--input",
+            "out/controller-status.vcd",
+        ],
+    );
+    let frames = jsonl::parse::<HansRecord>(&dec.stdout).unwrap();
+    assert!(frames.len() >= 150, "{}", dec.stderr);
+    assert!(frames
+        .iter()
+        .all(|(_, f)| matches!(f, HansRecord::Frame { .. })));
+}
+
+#[test]
+fn bad_input_fails_cleanly() {
+    let d = dir("bad");
+    generate(&d, "xy2", &["--protocol", "xy2", "--frames", "50"]);
+    generate(&d, "hans", &["--protocol", "hans", "--frames", "20"]);
+    let good = std::fs::read_to_string(d.join("xy2.vcd")).unwrap();
+    let header_end = good.find("$enddefinitions").unwrap();
+    std::fs::write(d.join("cut.vcd"), &good[..header_end]).unwrap();
+    std::fs::write(d.join("junk.vcd"), b"\x00\xff$$ not a capture").unwrap();
+    let check = |config: &str, input: &str, extra: &[&str], want: &str| {
+        std::fs::write(d.join("b.toml"), config).unwrap();
+        let mut a = vec![
+            "bridge",
+            "--config",
+            "b.toml",
+            "--input",
+            input,
+            "--output-dir",
+            "bad_out",
+        ];
+        a.extend_from_slice(extra);
+        let o = run_in(&d, &a);
+        assert_eq!(o.code, 1, "{a:?}: {}", o.stderr);
+        assert!(o.stderr.starts_with("bridge-sim: error: "), "{}", o.stderr);
+        assert!(o.stderr.contains(want), "{config} {a:?}: {}", o.stderr);
+        assert_eq!(o.stderr.trim().lines().count(), 1, "{}", o.stderr);
+        assert!(
+            !d.join("bad_out").exists(),
+            "nothing is written on an error"
+        );
+    };
+    let xy2 = "[controller]\nprotocol = \"xy2\"\n[head]\nprotocol = \"xy3\"\n";
+    // Configuration: unknown key (the key and its table named), bad value, a rule of
+    // Config::validate (the key named), not TOML, no file.
+    check(
+        "[controller.xy2]\nparity_mode = \"data_only\"\n",
+        "xy2.vcd",
+        &[],
+        "b.toml: line 2: unknown field `parity_mode`",
+    );
+    check(
+        "[controller.xy2]\nparity_mode = 1\n",
+        "xy2.vcd",
+        &[],
+        "in [controller.xy2]: `parity_mode = 1`",
+    );
+    check(
+        "[failsafe]\nrecovery_frames = -3\n",
+        "xy2.vcd",
+        &[],
+        "`recovery_frames = -3`",
+    );
+    check(
+        "[head]\nprotocol = \"xy2\"\n[head.xy2]\nmode = \"extended18\"\n",
+        "xy2.vcd",
+        &[],
+        "b.toml: head.xy2.enhanced_commands:",
+    );
+    check(
+        "[head]\nprotocol = \"hans\"\n[output]\nframe_rate_hz = 50000\n",
+        "xy2.vcd",
+        &[],
+        "output.frame_rate_hz",
+    );
+    check("this is = = not toml", "xy2.vcd", &[], "b.toml: line 1:");
+    let o = run_in(
+        &d,
+        &[
+            "bridge",
+            "--config",
+            "none.toml",
+            "--input",
+            "xy2.vcd",
+            "--output-dir",
+            "x",
+        ],
+    );
+    assert_eq!(o.code, 1);
+    assert!(o.stderr.contains("none.toml:"), "{}", o.stderr);
+    // Captures: truncated, garbage, missing, the wrong protocol (no `clk`), a line
+    // the configuration needs renamed away (Z with z.source = "input").
+    check(xy2, "cut.vcd", &[], "truncated");
+    check(xy2, "junk.vcd", &[], "VCD");
+    check(xy2, "nope.vcd", &[], "nope.vcd");
+    check(xy2, "hans.vcd", &[], "signal `clk`");
+    check(xy2, "xy2.vcd", &["--map", "z=Z9"], "signal `Z9`");
+    // Head status: an XY3-100 head's status is the backchannel.
+    check(
+        xy2,
+        "xy2.vcd",
+        &["--head-status", "hans.vcd"],
+        "signal `back`",
+    );
+    // Command line: bad oversampling ratio is a usage error.
+    let o = run_in(
+        &d,
+        &[
+            "bridge",
+            "--config",
+            "b.toml",
+            "--input",
+            "hans.vcd",
+            "--output-dir",
+            "x",
+            "--hans-oversample",
+            "7",
+        ],
+    );
+    assert_eq!(o.code, 2);
+}
+
+#[test]
+fn demo_runs_and_its_files_decode() {
+    let d = dir("demo");
+    let o = ok_in(&d, &[]);
+    let demo = d.join("bridge-sim-demo");
+    for f in [
+        "controller.vcd",
+        "head-status.vcd",
+        "bridge.toml",
+        "head.vcd",
+        "controller-status.vcd",
+    ] {
+        assert!(demo.join(f).exists(), "{f}");
+        assert!(o.stdout.contains(f), "{f} not named: {}", o.stdout);
+    }
+    assert!(
+        o.stdout.contains("Holding at 16.000 ms, Safe at 26.000 ms"),
+        "{}",
+        o.stdout
+    );
+    assert!(!o.stdout.contains("UNEXPECTED"), "{}", o.stdout);
+
+    // The controller's frames as `decode` sees them: good until the break, errors on
+    // X after it.
+    let ctrl = ok_in(
+        &d,
+        &[
+            "decode",
+            "--protocol",
+            "xy2",
+            "--input",
+            "bridge-sim-demo/controller.vcd",
+        ],
+    );
+    let ctrl: Vec<ForwardRecord> = jsonl::parse(&ctrl.stdout)
+        .unwrap()
+        .into_iter()
+        .map(|(_, r)| r)
+        .collect();
+    assert_eq!(ctrl.len(), 3000);
+    let valid: Vec<(u32, u32)> = ctrl
+        .iter()
+        .filter_map(xy_forward)
+        .map(|(x, y)| (x.to_raw(20), y.to_raw(20)))
+        .collect();
+    assert_eq!(valid.len(), 1499, "frames before the break at 15 ms");
+
+    // The head's frames: valid controller positions, the last one held, then the
+    // park position from 26 ms on; never anything else.
+    let head = ok_in(
+        &d,
+        &[
+            "decode",
+            "--protocol",
+            "hans",
+            "--input",
+            "bridge-sim-demo/head.vcd",
+        ],
+    );
+    let mut last_forwarded = None;
+    let mut parked_from = None;
+    for (_, r) in jsonl::parse::<HansRecord>(&head.stdout).unwrap() {
+        let HansRecord::Frame {
+            t_ns: Some(t),
+            data: [x, y, _],
+        } = r
+        else {
+            panic!("head frame rejected: {r:?}");
+        };
+        if (x, y) == (0x8_0000, 0x8_0000) {
+            parked_from.get_or_insert(t);
+        } else {
+            assert!(
+                valid.contains(&(x, y)),
+                "({x}, {y}) at {t} ns was never sent"
+            );
+            assert!(parked_from.is_none(), "a position after parking");
+            last_forwarded = Some((x, y));
+        }
+    }
+    assert_eq!(last_forwarded, valid.last().copied());
+    let parked = parked_from.unwrap();
+    assert!(
+        (26_000_000..26_100_000).contains(&parked),
+        "parked at {parked} ns"
+    );
+
+    // The replay the demo prints gives the same head-side file.
+    ok_in(
+        &d,
+        &[
+            "bridge",
+            "--config",
+            "bridge-sim-demo/bridge.toml",
+            "--input",
+            "bridge-sim-demo/controller.vcd",
+            "--head-status",
+            "bridge-sim-demo/head-status.vcd",
+            "--output-dir",
+            "replay",
+        ],
+    );
+    assert_eq!(
+        std::fs::read(d.join("replay/head.vcd")).unwrap(),
+        std::fs::read(demo.join("head.vcd")).unwrap()
+    );
+
+    // The laser gate: on once the link runs, off at the loss (16 ms).
+    let wave = read_vcd_file(&demo.join("head.vcd"), &["laser_gate"], &NameMap::new()).unwrap();
+    let gate = wave.get("laser_gate").unwrap();
+    assert!(gate.level_at(10_000_000_000));
+    assert!(!gate.level_at(16_000_000_000));
+    assert_eq!(gate.changes().len(), 2);
+}
