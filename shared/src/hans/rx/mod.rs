@@ -53,10 +53,14 @@
 
 pub mod channel;
 pub mod modes;
+pub mod ring;
+pub mod timing;
 
-use crate::hans::Frame;
+use crate::hans::{DecodeError, Frame};
 use crate::model::{FaultKind, Line, LineEvent};
-use channel::ChannelRx;
+use channel::Channel;
+use ring::{diff, Centres, Ring, HALF, RING_WORDS, FRAC};
+use timing::Timing;
 use modes::{majority3, majority5, super_vote, SuperOutcome};
 
 /// Number of HANS-100 data channels.
@@ -65,9 +69,9 @@ pub const CHANNELS: usize = 5;
 /// The bit rate of the sender, Hz.
 pub const BIT_RATE_HZ: u32 = 12_500_000;
 
-/// Words after a period's first pattern at which it closes (2 words = 32 samples,
-/// far more than skew plus jitter, far less than a frame).
-const PERIOD_WORDS: u8 = 2;
+/// Failing patterns in a row after which a channel's alignment (or, when no channel
+/// verifies, the shared lock) is abandoned.
+pub const RELOCK_AFTER: u8 = 3;
 
 /// Which channels are decoded and how they are combined (channels numbered 1..=5).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -183,23 +187,23 @@ pub struct ChannelStats {
     pub resyncs: u32,
 }
 
-/// Patterns of the frame period being collected.
-#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
-struct Period {
-    patterns: [Option<u128>; CHANNELS],
-    /// Words since the first pattern; `None` while no period is open.
-    age: Option<u8>,
-}
-
 /// The HANS-100 receiver (see the module docs).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub struct HansRx {
     mode: Mode,
     used: u8,
-    channels: [ChannelRx; CHANNELS],
     stats: [ChannelStats; CHANNELS],
-    period: Period,
     rejected: u32,
+    rings: [Ring; CHANNELS],
+    /// Stream words stored per channel (wrapping).
+    written: u32,
+    channels: [Channel; CHANNELS],
+    timing: Timing,
+    locked: bool,
+    /// Index of the reference channel: gathered in full, the others compared to it.
+    reference: usize,
+    /// Consecutive frames in which no channel verified.
+    dry: u8,
 }
 
 impl HansRx {
@@ -226,13 +230,19 @@ impl HansRx {
         let ratio = (u64::from(sample_hz) << 16) / u64::from(BIT_RATE_HZ);
         // 3..=4 times 2^16 fits i32.
         let ratio = i32::try_from(ratio).unwrap_or(i32::MAX);
+        let used = mode.channel_mask();
         Ok(HansRx {
             mode,
-            used: mode.channel_mask(),
-            channels: [ChannelRx::new(ratio); CHANNELS],
+            used,
             stats: [ChannelStats::default(); CHANNELS],
-            period: Period::default(),
             rejected: 0,
+            rings: [Ring::default(); CHANNELS],
+            written: 0,
+            channels: [Channel::default(); CHANNELS],
+            timing: Timing::new(ratio),
+            locked: false,
+            reference: used.trailing_zeros() as usize,
+            dry: 0,
         })
     }
 
@@ -270,10 +280,7 @@ impl HansRx {
         let used_present = (0..CHANNELS)
             .filter(|n| self.used & (1 << n) != 0)
             .all(|n| n < chunks.len());
-        if !used_present {
-            len = 0;
-        }
-        if len == usize::MAX {
+        if !used_present || len == usize::MAX {
             len = 0;
         }
         if longest > len {
@@ -282,78 +289,197 @@ impl HansRx {
                 kind: FaultKind::Dropped,
             });
         }
-        for i in 0..len {
-            for (n, chunk) in chunks.iter().enumerate().take(CHANNELS) {
-                if self.used & (1 << n) == 0 {
+        let mut at = 0;
+        loop {
+            if self.locked {
+                // Words still missing before the frame can be decoded (positions
+                // count words modulo 4 096, see `ring`).
+                let missing = ((self.need() << 20).wrapping_sub(self.written << 20)) as i32 >> 20;
+                if missing <= 0 {
+                    self.frame(sink);
                     continue;
                 }
-                let Some(&word) = chunk.get(i) else { continue };
-                self.word(n, word, sink);
+                if at >= len {
+                    break;
+                }
+                let n = (missing as usize).min(len - at).min(RING_WORDS / 2);
+                self.store(chunks, at, n);
+                at += n;
+            } else {
+                if at >= len {
+                    break;
+                }
+                self.store(chunks, at, 1);
+                at += 1;
+                self.hunt();
             }
-            self.end_word(sink);
         }
     }
 
-    /// One word of channel index `n`.
-    fn word(&mut self, n: usize, word: u16, sink: &mut impl FnMut(RxEvent)) {
-        let (Some(ch), Some(stats)) = (self.channels.get_mut(n), self.stats.get_mut(n)) else {
-            return;
-        };
-        let step = ch.push(word);
-        if step.lost {
-            stats.resyncs = stats.resyncs.wrapping_add(1);
-            sink(RxEvent::Fault {
-                channel: Some(number(n)),
-                kind: FaultKind::Resync,
-            });
-        }
-        if let Some(p) = step.pattern {
-            if let Some(slot) = self.period.patterns.get_mut(n) {
-                // A second pattern within one period cannot be a real frame; the
-                // first one stands.
-                if slot.is_none() {
-                    *slot = Some(p);
+    /// Copies words `at..at + n` of every used channel into the rings.
+    fn store(&mut self, chunks: &[&[u16]], at: usize, n: usize) {
+        for (k, (ring, chunk)) in self.rings.iter_mut().zip(chunks).enumerate() {
+            if self.used & (1 << k) != 0 {
+                if let Some(src) = chunk.get(at..at + n) {
+                    ring.write(self.written, src);
                 }
             }
-            if self.period.age.is_none() {
-                self.period.age = Some(0);
+        }
+        self.written = self.written.wrapping_add(n as u32);
+    }
+
+    /// The stream word (modulo 4 096) before which every sample the current frame
+    /// needs has arrived: its centres on every channel, the next start-edge windows,
+    /// and one window more for comparing a late channel.
+    fn need(&self) -> u32 {
+        let t = &self.timing;
+        let late = self
+            .channels
+            .iter()
+            .enumerate()
+            .filter(|(n, _)| self.used & (1 << n) != 0)
+            .filter_map(|(_, c)| c.delay)
+            .fold(0, i32::max);
+        let last = t
+            .predicted()
+            .wrapping_add(late as u32)
+            .wrapping_add(2 * t.ratio as u32);
+        ((last >> 21) + 2) << 1
+    }
+
+    /// Hunts in the word just stored, on every used channel; the first channel to
+    /// confirm a frame period sets the shared timing.
+    fn hunt(&mut self) {
+        let index = self.written.wrapping_sub(1);
+        let threshold = self.timing.hunt_threshold();
+        let bounds = self.timing.bounds;
+        let mut lock = None;
+        for (n, (ch, ring)) in self.channels.iter_mut().zip(&self.rings).enumerate() {
+            if self.used & (1 << n) == 0 {
+                continue;
+            }
+            let w = ring.window(index >> 1);
+            let (w, prev) = if index & 1 == 0 {
+                (w >> 16, ring.window(index.wrapping_sub(1) >> 1) & 0xFFFF)
+            } else {
+                (w & 0xFFFF, w >> 16)
+            };
+            if let Some(found) = ch.hunt(index, w, prev, threshold, bounds) {
+                lock = Some((n, found));
+                break;
+            }
+        }
+        if let Some((n, (start, period))) = lock {
+            self.timing.lock(start, period);
+            self.locked = true;
+            self.reference = n;
+            self.dry = 0;
+            for ch in self.channels.iter_mut() {
+                ch.reset_hunt();
+                ch.unalign();
+            }
+            if let Some(ch) = self.channels.get_mut(n) {
+                ch.align(0);
             }
         }
     }
 
-    /// After one word of every used channel: closes the period when it is complete.
-    fn end_word(&mut self, sink: &mut impl FnMut(RxEvent)) {
-        let Some(age) = self.period.age else { return };
-        let mut have = 0u8;
-        for (n, p) in self.period.patterns.iter().enumerate() {
-            if p.is_some() {
-                have |= 1 << n;
+    /// Decodes the frame at the current start edge on every aligned channel, then
+    /// finds the next start edge.
+    fn frame(&mut self, sink: &mut impl FnMut(RxEvent)) {
+        let ratio = self.timing.ratio;
+        let start = self.timing.start;
+        let half_bit = (ratio / 2) as u32 + HALF;
+        // Channels not aligned yet try at this frame's start edge.
+        for (n, (ch, ring)) in self.channels.iter_mut().zip(&self.rings).enumerate() {
+            if self.used & (1 << n) != 0 && ch.delay.is_none() {
+                if let Some(e) = Channel::edge(ring, start, ratio) {
+                    ch.align(diff(e, start));
+                }
             }
         }
-        if have == self.used || age >= PERIOD_WORDS {
-            self.close(sink);
-        } else {
-            self.period.age = Some(age + 1);
+        let delay = |rx: &HansRx, n: usize| rx.channels.get(n).and_then(|c| c.delay);
+        if delay(self, self.reference).is_none() {
+            match (0..CHANNELS).find(|&n| self.used & (1 << n) != 0 && delay(self, n).is_some()) {
+                Some(n) => self.reference = n,
+                None => {
+                    self.lose(sink);
+                    return;
+                }
+            }
         }
+        let reference = self.reference;
+        let ref_delay = delay(self, reference).unwrap_or(0);
+        let mut centres = Centres::default();
+        let mut patterns = [None; CHANNELS];
+        let mut same = 1u8 << reference;
+        let Some(ring) = self.rings.get(reference) else {
+            return;
+        };
+        let ref_pattern = ring.gather(
+            start.wrapping_add(ref_delay as u32).wrapping_add(half_bit),
+            ratio as u32,
+            Some(&mut centres),
+        );
+        for (n, (slot, (ch, ring))) in patterns
+            .iter_mut()
+            .zip(self.channels.iter().zip(&self.rings))
+            .enumerate()
+        {
+            let Some(d) = ch.delay else { continue };
+            if self.used & (1 << n) == 0 {
+                continue;
+            }
+            if n == reference {
+                *slot = Some(ref_pattern);
+                continue;
+            }
+            // Same centres shifted by the whole samples between the two channels: a
+            // match means this channel's pattern is the reference's.
+            let rel = (d - ref_delay + HALF as i32) >> FRAC;
+            *slot = Some(if ring.agrees(&centres, rel) {
+                same |= 1 << n;
+                ref_pattern
+            } else {
+                ring.gather(
+                    start.wrapping_add(d as u32).wrapping_add(half_bit),
+                    ratio as u32,
+                    None,
+                )
+            });
+        }
+        let verified = self.evaluate(&patterns, same, ref_pattern, sink);
+        self.next(verified, sink);
     }
 
-    /// Evaluates the collected period in the configured mode.
-    fn close(&mut self, sink: &mut impl FnMut(RxEvent)) {
-        let patterns = self.period.patterns;
-        self.period = Period::default();
-        // Every present pattern is checked on its own for the channel's counters.
+    /// Checks every pattern and applies the decode mode. Returns the channels that
+    /// verified.
+    fn evaluate(
+        &mut self,
+        patterns: &[Option<u128>; CHANNELS],
+        same: u8,
+        ref_pattern: u128,
+        sink: &mut impl FnMut(RxEvent),
+    ) -> u8 {
+        let ref_decoded = Frame::decode(ref_pattern);
         let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
+        let mut ok = 0u8;
         for (n, p) in patterns.iter().enumerate() {
             let (Some(p), Some(stats), Some(ch)) =
                 (p, self.stats.get_mut(n), self.channels.get_mut(n))
             else {
                 continue;
             };
-            let decoded = Frame::decode(*p);
-            let relock = ch.checked(decoded.is_ok());
+            let decoded = if same & (1 << n) != 0 {
+                ref_decoded
+            } else {
+                Frame::decode(*p)
+            };
             match decoded {
                 Ok(f) => {
                     stats.frames_ok = stats.frames_ok.wrapping_add(1);
+                    ch.failures = 0;
+                    ok |= 1 << n;
                     if let Some(v) = verified.get_mut(n) {
                         *v = Some(f);
                     }
@@ -364,16 +490,20 @@ impl HansRx {
                         channel: Some(number(n)),
                         kind: FaultKind::CheckFailed,
                     });
+                    ch.failures = ch.failures.saturating_add(1);
+                    // A channel that keeps failing is taken to be misaligned (a
+                    // delay measured on a glitch): it aligns again from scratch.
+                    if ch.failures >= RELOCK_AFTER && ch.unalign() {
+                        stats.resyncs = stats.resyncs.wrapping_add(1);
+                        sink(RxEvent::Fault {
+                            channel: Some(number(n)),
+                            kind: FaultKind::Resync,
+                        });
+                    }
                 }
             }
-            if relock {
-                stats.resyncs = stats.resyncs.wrapping_add(1);
-                sink(RxEvent::Fault {
-                    channel: Some(number(n)),
-                    kind: FaultKind::Resync,
-                });
-            }
         }
+        let all = same == self.used;
         let get = |c: u8| {
             usize::from(c)
                 .checked_sub(1)
@@ -387,13 +517,17 @@ impl HansRx {
                     sink(RxEvent::Frame(*f));
                 }
             }
+            // Every voter holding the reference's pattern: the majority is that
+            // pattern, already checked.
+            Mode::Vote3 { .. } | Mode::Vote5 if all => self.voted(ref_decoded, sink),
             Mode::Vote3 {
                 channels: [a, b, c],
             } => {
-                self.voted(majority3(get(a), get(b), get(c)), sink);
+                self.voted(Frame::decode(majority3(get(a), get(b), get(c))), sink);
             }
             Mode::Vote5 => {
-                self.voted(majority5([get(1), get(2), get(3), get(4), get(5)]), sink);
+                let v = majority5([get(1), get(2), get(3), get(4), get(5)]);
+                self.voted(Frame::decode(v), sink);
             }
             Mode::Super => match super_vote(&verified) {
                 SuperOutcome::Nothing => {}
@@ -417,17 +551,134 @@ impl HansRx {
                 }
             },
         }
+        ok
     }
 
-    /// Publishes a voted pattern if it passes every check.
-    fn voted(&mut self, pattern: u128, sink: &mut impl FnMut(RxEvent)) {
-        match Frame::decode(pattern) {
+    /// Publishes a voted pattern if it passed every check.
+    fn voted(&mut self, decoded: Result<Frame, DecodeError>, sink: &mut impl FnMut(RxEvent)) {
+        match decoded {
             Ok(f) => sink(RxEvent::Frame(f)),
             Err(_) => {
                 self.rejected = self.rejected.wrapping_add(1);
                 sink(RxEvent::Fault {
                     channel: None,
                     kind: FaultKind::CheckFailed,
+                });
+            }
+        }
+    }
+
+    /// Finds the next start edge on every aligned channel and moves the shared
+    /// timing and the delays on. `verified`: the channels whose frame just passed.
+    fn next(&mut self, verified: u8, sink: &mut impl FnMut(RxEvent)) {
+        let pred = self.timing.predicted();
+        let ratio = self.timing.ratio;
+        let mut edges: [Option<u32>; CHANNELS] = [None; CHANNELS];
+        for (n, ((ch, ring), (edge, stats))) in self
+            .channels
+            .iter_mut()
+            .zip(&self.rings)
+            .zip(edges.iter_mut().zip(self.stats.iter_mut()))
+            .enumerate()
+        {
+            let Some(d) = ch.delay else { continue };
+            if self.used & (1 << n) == 0 {
+                continue;
+            }
+            *edge = Channel::edge(ring, pred.wrapping_add(d as u32), ratio);
+            if edge.is_none() {
+                ch.unalign();
+                stats.resyncs = stats.resyncs.wrapping_add(1);
+                sink(RxEvent::Fault {
+                    channel: Some(number(n)),
+                    kind: FaultKind::Resync,
+                });
+            }
+        }
+        // Each channel's estimate of the shared start edge, as an error against the
+        // prediction. Channels that just verified are trusted; the others only when
+        // none did. The upper median shrugs off a glitch on a minority of channels
+        // (a glitch before the real edge reads early).
+        let mut errs = [0i32; CHANNELS];
+        let mut count = 0;
+        for trusted in [verified, 0xFF] {
+            for (n, (edge, ch)) in edges.iter().zip(&self.channels).enumerate() {
+                if let (Some(e), Some(d), true) = (edge, ch.delay, trusted & (1 << n) != 0) {
+                    if let Some(slot) = errs.get_mut(count) {
+                        *slot = diff(*e, pred).wrapping_sub(d);
+                        count += 1;
+                    }
+                }
+            }
+            if count > 0 {
+                break;
+            }
+        }
+        let Some(errs) = errs.get_mut(..count) else {
+            return;
+        };
+        errs.sort_unstable();
+        let Some(&err) = errs.get(count / 2) else {
+            self.lose(sink);
+            return;
+        };
+        if !self.timing.advance(err) {
+            self.lose(sink);
+            return;
+        }
+        let start = self.timing.start;
+        for (n, (edge, (ch, stats))) in edges
+            .iter()
+            .zip(self.channels.iter_mut().zip(self.stats.iter_mut()))
+            .enumerate()
+        {
+            if let Some(e) = edge {
+                if !ch.track(diff(*e, start)) {
+                    stats.resyncs = stats.resyncs.wrapping_add(1);
+                    sink(RxEvent::Fault {
+                        channel: Some(number(n)),
+                        kind: FaultKind::Resync,
+                    });
+                }
+            }
+        }
+        // Keep the reference while it verifies and has its edge; otherwise the first
+        // channel that does, or at least has an edge.
+        let good = |n: usize, need: u8| {
+            matches!(edges.get(n), Some(Some(_))) && need & (1 << n) != 0
+        };
+        if !good(self.reference, verified) {
+            if let Some(n) = (0..CHANNELS)
+                .find(|&n| good(n, verified))
+                .or_else(|| (0..CHANNELS).find(|&n| good(n, 0xFF)))
+            {
+                self.reference = n;
+            }
+        }
+        if verified == 0 {
+            self.dry = self.dry.saturating_add(1);
+            // A lock that yields nothing but failures is a false lock (on a data
+            // edge that happened to repeat a frame apart, or a rate far off).
+            if self.dry >= RELOCK_AFTER {
+                self.lose(sink);
+            }
+        } else {
+            self.dry = 0;
+        }
+    }
+
+    /// Gives up the shared timing: every aligned channel reports a resync, and the
+    /// hunt starts over from the next word.
+    fn lose(&mut self, sink: &mut impl FnMut(RxEvent)) {
+        self.locked = false;
+        self.dry = 0;
+        for (n, (ch, stats)) in self.channels.iter_mut().zip(&mut self.stats).enumerate() {
+            ch.reset_hunt();
+            if ch.unalign() {
+                stats.resyncs = stats.resyncs.wrapping_add(1);
+                sink(RxEvent::Fault {
+                    channel: Some(number(n)),
+                    kind: FaultKind::Resync,
                 });
             }
         }

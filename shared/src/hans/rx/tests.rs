@@ -2,7 +2,6 @@
 //! simplest possible line: ideal edges, one sampling clock at `ratio` samples per
 //! bit with a start phase; the host tests add jitter, skew and noise.
 
-use super::channel::ChannelRx;
 use super::modes::{majority3, majority5, super_vote, SuperOutcome};
 use super::*;
 use crate::model::FaultKind;
@@ -337,20 +336,15 @@ fn super_rule() {
 }
 
 #[test]
-fn channel_tracks_rate_offsets() {
+fn timing_tracks_rate_offsets() {
     // 1.5 % fast and slow senders at 3.2x nominal.
     for ratio in [3.2 * 0.985, 3.2 * 1.015] {
         let sent = frames(60, 5);
         let words = oversample(&line_bits(&sent), ratio, 0.4);
-        let mut ch = ChannelRx::new((3.2 * 65536.0) as i32);
-        let mut ok = 0;
-        for &w in &words {
-            if let Some(p) = ch.push(w).pattern {
-                ok += usize::from(Frame::decode(p).is_ok());
-            }
-        }
-        assert!(ok + 4 >= sent.len(), "{ratio}: {ok} frames");
-        let tracked = f64::from(ch.ratio_q16()) / 65536.0;
+        let mut rx = HansRx::new(40_000_000, Mode::Normal { channel: 4 }).unwrap();
+        let got = published(&run(&mut rx, &words, 11));
+        assert!(got.len() + 4 >= sent.len(), "{ratio}: {} frames", got.len());
+        let tracked = f64::from(rx.timing.ratio) / 65536.0;
         assert!(
             (tracked - ratio).abs() < 0.002,
             "tracked {tracked} for {ratio}"
