@@ -63,8 +63,9 @@ impl Channel {
         }
     }
 
-    /// Moves the delay toward `measured` (see the module docs). Returns false (and
-    /// unaligns) if the channel drifted out of the plausible range.
+    /// Moves the delay toward `measured`, the channel's start edge against the
+    /// shared one (see the module docs). Returns false (and unaligns) if the channel
+    /// drifted out of the plausible range.
     pub fn track(&mut self, measured: i32) -> bool {
         let Some(d) = self.delay else { return false };
         self.fits = (self.fits + 1).min(DELAY_FITS);

@@ -626,14 +626,16 @@ impl HansRx {
             self.lose(sink);
             return;
         }
-        let start = self.timing.start;
+        // Each delay follows its channel's deviation from the consensus only, so a
+        // lone channel's delay stays put and the shared filter alone smooths its
+        // jitter.
         for (n, (edge, (ch, stats))) in edges
             .iter()
             .zip(self.channels.iter_mut().zip(self.stats.iter_mut()))
             .enumerate()
         {
-            if let Some(e) = edge {
-                if !ch.track(diff(*e, start)) {
+            if let (Some(e), Some(_)) = (edge, ch.delay) {
+                if !ch.track(diff(*e, pred).wrapping_sub(err)) {
                     stats.resyncs = stats.resyncs.wrapping_add(1);
                     sink(RxEvent::Fault {
                         channel: Some(number(n)),
