@@ -54,12 +54,14 @@
 pub mod channel;
 pub mod modes;
 pub mod ring;
+pub mod table;
 pub mod timing;
 
 use crate::hans::{DecodeError, Frame};
 use crate::model::{FaultKind, Line, LineEvent};
 use channel::Channel;
 use ring::{diff, Centres, Ring, HALF, RING_WORDS, FRAC};
+use table::Table;
 use timing::Timing;
 use modes::{majority3, majority5, super_vote, SuperOutcome};
 
@@ -199,6 +201,7 @@ pub struct HansRx {
     written: u32,
     channels: [Channel; CHANNELS],
     timing: Timing,
+    table: Table,
     locked: bool,
     /// Index of the reference channel: gathered in full, the others compared to it.
     reference: usize,
@@ -240,6 +243,7 @@ impl HansRx {
             written: 0,
             channels: [Channel::default(); CHANNELS],
             timing: Timing::new(ratio),
+            table: Table::new(ratio),
             locked: false,
             reference: used.trailing_zeros() as usize,
             dry: 0,
@@ -416,7 +420,10 @@ impl HansRx {
         let Some(ring) = self.rings.get(reference) else {
             return;
         };
+        self.table.follow(ratio);
+        let table = &mut self.table;
         let ref_pattern = ring.gather(
+            table,
             start.wrapping_add(ref_delay as u32).wrapping_add(half_bit),
             ratio as u32,
             Some(&mut centres),
@@ -442,6 +449,7 @@ impl HansRx {
                 ref_pattern
             } else {
                 ring.gather(
+                    table,
                     start.wrapping_add(d as u32).wrapping_add(half_bit),
                     ratio as u32,
                     None,

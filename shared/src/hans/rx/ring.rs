@@ -13,6 +13,7 @@
 //! Window `j` is the 32 samples from `32 j`, i.e. words `2j` and `2j + 1` (earlier word
 //! in the high half), so sample `32 j + b` is bit `31 - b` of it.
 
+use super::table::Table;
 use crate::hans::FRAME_BITS;
 
 /// Words kept per channel: 1 024 samples, twice the longest frame at 4x plus its
@@ -23,8 +24,8 @@ pub const FRAC: u32 = 16;
 /// Half a sample (Q16).
 pub const HALF: u32 = 1 << (FRAC - 1);
 /// Most 32-sample windows a frame's centres can touch: 125 bits at 4.2 samples per
-/// bit (4x and 5 % off) are 525 samples, 17 windows; one more for a partial start.
-pub const MAX_WINDOWS: usize = 18;
+/// bit (4x and 5 % off) are 525 samples, 17 windows, plus partial ones at both ends.
+pub const MAX_WINDOWS: usize = 20;
 
 /// `a - b` of two wrapping positions (or word counts), as a signed distance.
 pub const fn diff(a: u32, b: u32) -> i32 {
@@ -86,20 +87,6 @@ impl Ring {
         self.word(j.wrapping_mul(2)) << 16 | self.word(j.wrapping_mul(2).wrapping_add(1))
     }
 
-    /// The 32 samples from sample `32 j + d` (`d` in -31..=31).
-    fn shifted(&self, j: u32, d: i32) -> u32 {
-        let here = self.window(j);
-        if d > 0 {
-            let next = self.window(j.wrapping_add(1));
-            here << d | (next >> 1) >> (31 - d)
-        } else if d < 0 {
-            let prev = self.window(j.wrapping_sub(1));
-            (prev << 1) << (31 + d) | here >> -d
-        } else {
-            here
-        }
-    }
-
     /// The first falling edge (a low sample right after a high one) whose low sample
     /// lies in `lo..=hi` (Q16 positions, rounded down to samples; at most a few words
     /// apart). Returns the edge position, half a sample before that low sample.
@@ -139,68 +126,108 @@ impl Ring {
     }
 
     /// The 125 bit-centre samples of a frame whose first centre is at `first` (Q16,
-    /// plus half a sample so that truncation rounds), `ratio` (Q16) apart: the raw
-    /// pattern (first bit at bit 124) and, when `centres` is given, the masks and
-    /// values the other channels are checked against.
-    pub fn gather(&self, first: u32, ratio: u32, mut centres: Option<&mut Centres>) -> u128 {
-        let mut pos = first;
-        let mut j = pos >> (FRAC + 5);
+    /// plus half a sample so that truncation rounds), `ratio` (Q16) apart, gathered
+    /// window by window with `table` ([`super::table`]): the raw pattern (first bit
+    /// at bit 124) and, when `centres` is given, the masks and values the other
+    /// channels are checked against.
+    pub fn gather(
+        &self,
+        table: &mut Table,
+        first: u32,
+        ratio: u32,
+        mut centres: Option<&mut Centres>,
+    ) -> u128 {
+        let mut j = first >> (FRAC + 5);
         if let Some(c) = centres.as_deref_mut() {
             c.first = j;
-            c.count = 0;
         }
-        let mut x = self.window(j);
-        let mut mask = 0u32;
-        let mut k = 0usize;
-        let mut acc = 0u32;
-        let mut pattern = 0u128;
-        for bit in 0..FRAME_BITS as u32 {
-            let s = pos >> FRAC;
-            if s >> 5 != j {
-                if let Some(c) = centres.as_deref_mut() {
-                    if let (Some(m), Some(v)) = (c.masks.get_mut(k), c.values.get_mut(k)) {
-                        *m = mask;
-                        *v = x & mask;
-                    }
+        // The first window starts anywhere before the first centre: its entry is the
+        // one of the phase `skip` bit times earlier, minus those `skip` centres.
+        let phase = first.wrapping_sub(j << (FRAC + 5));
+        let skip = phase / ratio.max(1);
+        let mut pos = first.wrapping_sub(skip.wrapping_mul(ratio));
+        let mut skip = skip.min(12);
+        let mut left = FRAME_BITS as u32;
+        let mut words = [0u32; 4];
+        let mut full = 0;
+        let mut cur = 0u32;
+        let mut used = 0u32;
+        let mut k = 0;
+        while left > 0 && k < MAX_WINDOWS {
+            let e = table.entry(diff(pos, j << (FRAC + 5)));
+            let x = self.window(j);
+            let mut all = e.all;
+            for _ in 0..skip {
+                all &= !0x8000_0000u32.checked_shr(all.leading_zeros()).unwrap_or(0);
+            }
+            let n = e.count.saturating_sub(skip).min(left);
+            let bits = (e.bits(x) << skip) & !(u32::MAX >> n);
+            for _ in n + skip..e.count {
+                all &= all.wrapping_sub(1);
+            }
+            if let Some(c) = centres.as_deref_mut() {
+                if let (Some(m), Some(v)) = (c.masks.get_mut(k), c.values.get_mut(k)) {
+                    *m = all;
+                    *v = x & all;
                 }
-                k += 1;
-                j = s >> 5;
-                x = self.window(j);
-                mask = 0;
             }
-            let b = s & 31;
-            acc = acc << 1 | (x << b) >> 31;
-            mask |= 0x8000_0000 >> b;
-            pos = pos.wrapping_add(ratio);
-            if bit % 32 == 31 {
-                pattern = pattern << 32 | u128::from(acc);
-                acc = 0;
+            // Append the n bits, left-aligned, to the pattern words.
+            cur |= bits >> used;
+            used += n;
+            if used >= 32 {
+                if let Some(w) = words.get_mut(full) {
+                    *w = cur;
+                }
+                full += 1;
+                used -= 32;
+                cur = if used == 0 { 0 } else { bits << (n - used) };
             }
+            pos = pos.wrapping_add((n + skip).wrapping_mul(ratio));
+            left -= n;
+            skip = 0;
+            j = j.wrapping_add(1);
+            k += 1;
         }
-        pattern = pattern << 29 | u128::from(acc);
         if let Some(c) = centres {
-            if let (Some(m), Some(v)) = (c.masks.get_mut(k), c.values.get_mut(k)) {
-                *m = mask;
-                *v = x & mask;
-            }
-            c.count = (k + 1).min(MAX_WINDOWS);
+            c.count = k;
         }
-        pattern
+        let [a, b, c, _] = words;
+        (u128::from(a) << 96 | u128::from(b) << 64 | u128::from(c) << 32 | u128::from(cur)) >> 3
     }
 
-    /// True when this channel, `d` samples later than the reference, has the
-    /// reference's value at every centre of `centres`.
+    /// True when this channel, `d` samples later than the reference (at most ±31),
+    /// has the reference's value at every centre of `centres`.
     pub fn agrees(&self, centres: &Centres, d: i32) -> bool {
         let mut bad = 0u32;
         let mut j = centres.first;
-        for (m, v) in centres
+        let windows = centres
             .masks
             .iter()
             .zip(&centres.values)
-            .take(centres.count)
-        {
-            bad |= (self.shifted(j, d) & m) ^ v;
-            j = j.wrapping_add(1);
+            .take(centres.count);
+        if d > 0 {
+            let (l, r) = (d as u32 & 31, 31 - (d as u32 & 31));
+            let mut here = self.window(j);
+            for (m, v) in windows {
+                j = j.wrapping_add(1);
+                let next = self.window(j);
+                bad |= ((here << l | (next >> 1) >> r) & m) ^ v;
+                here = next;
+            }
+        } else if d < 0 {
+            let (l, r) = (31 - (d.unsigned_abs() & 31), d.unsigned_abs() & 31);
+            let mut prev = self.window(j.wrapping_sub(1));
+            for (m, v) in windows {
+                let here = self.window(j);
+                bad |= ((((prev << 1) << l) | here >> r) & m) ^ v;
+                prev = here;
+                j = j.wrapping_add(1);
+            }
+        } else {
+            for (m, v) in windows {
+                bad |= (self.window(j) & m) ^ v;
+                j = j.wrapping_add(1);
+            }
         }
         bad == 0
     }
