@@ -54,6 +54,11 @@ impl Channel {
         self.delay.take().is_some()
     }
 
+    /// True when the delay filter has settled (aligned and measured often enough).
+    pub fn settled(&self) -> bool {
+        self.delay.is_some() && self.fits >= DELAY_FITS
+    }
+
     /// Aligns the channel with its first measured delay.
     pub fn align(&mut self, delay: i32) {
         if (-DELAY_MAX..=DELAY_MAX).contains(&delay) {

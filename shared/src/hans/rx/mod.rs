@@ -60,10 +60,10 @@ pub mod timing;
 use crate::hans::{DecodeError, Frame};
 use crate::model::{FaultKind, Line, LineEvent};
 use channel::Channel;
-use ring::{diff, Centres, Ring, HALF, RING_WORDS, FRAC};
+use modes::{majority3, majority5, super_vote, SuperOutcome};
+use ring::{diff, Centres, Ring, FRAC, HALF, RING_WORDS};
 use table::Table;
 use timing::Timing;
-use modes::{majority3, majority5, super_vote, SuperOutcome};
 
 /// Number of HANS-100 data channels.
 pub const CHANNELS: usize = 5;
@@ -74,6 +74,10 @@ pub const BIT_RATE_HZ: u32 = 12_500_000;
 /// Failing patterns in a row after which a channel's alignment (or, when no channel
 /// verifies, the shared lock) is abandoned.
 pub const RELOCK_AFTER: u8 = 3;
+
+/// A channel that matches the reference and has a settled delay has its start edge
+/// measured only every this many frames (its delay is a fixed skew).
+const REMEASURE: u32 = 8;
 
 /// Which channels are decoded and how they are combined (channels numbered 1..=5).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -202,11 +206,19 @@ pub struct HansRx {
     channels: [Channel; CHANNELS],
     timing: Timing,
     table: Table,
+    /// The reference's centres of the frame being decoded (kept here only to spare
+    /// clearing it every frame).
+    centres: Centres,
     locked: bool,
+    /// While locked: the stream word (modulo 4 096) before which the frame has all
+    /// its samples ([`HansRx::need`]).
+    need: u32,
     /// Index of the reference channel: gathered in full, the others compared to it.
     reference: usize,
     /// Consecutive frames in which no channel verified.
     dry: u8,
+    /// Frames decoded (wrapping; paces the re-measuring of settled delays).
+    frames: u32,
 }
 
 impl HansRx {
@@ -244,9 +256,12 @@ impl HansRx {
             channels: [Channel::default(); CHANNELS],
             timing: Timing::new(ratio),
             table: Table::new(ratio),
+            centres: Centres::default(),
             locked: false,
+            need: 0,
             reference: used.trailing_zeros() as usize,
             dry: 0,
+            frames: 0,
         })
     }
 
@@ -298,7 +313,7 @@ impl HansRx {
             if self.locked {
                 // Words still missing before the frame can be decoded (positions
                 // count words modulo 4 096, see `ring`).
-                let missing = ((self.need() << 20).wrapping_sub(self.written << 20)) as i32 >> 20;
+                let missing = ((self.need << 20).wrapping_sub(self.written << 20)) as i32 >> 20;
                 if missing <= 0 {
                     self.frame(sink);
                     continue;
@@ -362,12 +377,7 @@ impl HansRx {
             if self.used & (1 << n) == 0 {
                 continue;
             }
-            let w = ring.window(index >> 1);
-            let (w, prev) = if index & 1 == 0 {
-                (w >> 16, ring.window(index.wrapping_sub(1) >> 1) & 0xFFFF)
-            } else {
-                (w & 0xFFFF, w >> 16)
-            };
+            let (w, prev) = ring.word_and_prev(index);
             if let Some(found) = ch.hunt(index, w, prev, threshold, bounds) {
                 lock = Some((n, found));
                 break;
@@ -385,6 +395,7 @@ impl HansRx {
             if let Some(ch) = self.channels.get_mut(n) {
                 ch.align(0);
             }
+            self.need = self.need();
         }
     }
 
@@ -395,69 +406,69 @@ impl HansRx {
         let start = self.timing.start;
         let half_bit = (ratio / 2) as u32 + HALF;
         // Channels not aligned yet try at this frame's start edge.
-        for (n, (ch, ring)) in self.channels.iter_mut().zip(&self.rings).enumerate() {
-            if self.used & (1 << n) != 0 && ch.delay.is_none() {
+        let mut aligned = 0u8;
+        for n in bits(self.used) {
+            let (Some(ch), Some(ring)) = (self.channels.get_mut(n), self.rings.get(n)) else {
+                continue;
+            };
+            if ch.delay.is_none() {
                 if let Some(e) = Channel::edge(ring, start, ratio) {
                     ch.align(diff(e, start));
                 }
             }
-        }
-        let delay = |rx: &HansRx, n: usize| rx.channels.get(n).and_then(|c| c.delay);
-        if delay(self, self.reference).is_none() {
-            match (0..CHANNELS).find(|&n| self.used & (1 << n) != 0 && delay(self, n).is_some()) {
-                Some(n) => self.reference = n,
-                None => {
-                    self.lose(sink);
-                    return;
-                }
+            if ch.delay.is_some() {
+                aligned |= 1 << n;
             }
         }
+        if aligned & (1 << self.reference) == 0 {
+            if aligned == 0 {
+                self.lose(sink);
+                return;
+            }
+            self.reference = aligned.trailing_zeros() as usize;
+        }
         let reference = self.reference;
-        let ref_delay = delay(self, reference).unwrap_or(0);
-        let mut centres = Centres::default();
-        let mut patterns = [None; CHANNELS];
-        let mut same = 1u8 << reference;
+        let delay = |n: usize| self.channels.get(n).and_then(|c| c.delay).unwrap_or(0);
+        let ref_delay = delay(reference);
+        self.table.follow(ratio);
         let Some(ring) = self.rings.get(reference) else {
             return;
         };
-        self.table.follow(ratio);
-        let table = &mut self.table;
         let ref_pattern = ring.gather(
-            table,
+            &mut self.table,
             start.wrapping_add(ref_delay as u32).wrapping_add(half_bit),
             ratio as u32,
-            Some(&mut centres),
+            &mut self.centres,
         );
-        for (n, (slot, (ch, ring))) in patterns
-            .iter_mut()
-            .zip(self.channels.iter().zip(&self.rings))
-            .enumerate()
-        {
-            let Some(d) = ch.delay else { continue };
-            if self.used & (1 << n) == 0 {
+        let mut patterns = [None; CHANNELS];
+        let mut same = 1u8 << reference;
+        for n in bits(aligned) {
+            let (Some(slot), Some(ring)) = (patterns.get_mut(n), self.rings.get(n)) else {
                 continue;
-            }
+            };
             if n == reference {
                 *slot = Some(ref_pattern);
                 continue;
             }
+            let d = delay(n);
             // Same centres shifted by the whole samples between the two channels: a
             // match means this channel's pattern is the reference's.
             let rel = (d - ref_delay + HALF as i32) >> FRAC;
-            *slot = Some(if ring.agrees(&centres, rel) {
+            *slot = Some(if ring.agrees(&self.centres, rel) {
                 same |= 1 << n;
                 ref_pattern
             } else {
                 ring.gather(
-                    table,
+                    &mut self.table,
                     start.wrapping_add(d as u32).wrapping_add(half_bit),
                     ratio as u32,
-                    None,
+                    &mut Centres::default(),
                 )
             });
         }
-        let verified = self.evaluate(&patterns, same, ref_pattern, sink);
-        self.next(verified, sink);
+        let verified = self.evaluate(&patterns, aligned, same, ref_pattern, sink);
+        self.next(verified, same, sink);
+        self.need = self.need();
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that
@@ -465,6 +476,7 @@ impl HansRx {
     fn evaluate(
         &mut self,
         patterns: &[Option<u128>; CHANNELS],
+        present: u8,
         same: u8,
         ref_pattern: u128,
         sink: &mut impl FnMut(RxEvent),
@@ -472,10 +484,12 @@ impl HansRx {
         let ref_decoded = Frame::decode(ref_pattern);
         let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
         let mut ok = 0u8;
-        for (n, p) in patterns.iter().enumerate() {
-            let (Some(p), Some(stats), Some(ch)) =
-                (p, self.stats.get_mut(n), self.channels.get_mut(n))
-            else {
+        for n in bits(present) {
+            let (Some(Some(p)), Some(stats), Some(ch)) = (
+                patterns.get(n),
+                self.stats.get_mut(n),
+                self.channels.get_mut(n),
+            ) else {
                 continue;
             };
             let decoded = if same & (1 << n) != 0 {
@@ -537,6 +551,12 @@ impl HansRx {
                 let v = majority5([get(1), get(2), get(3), get(4), get(5)]);
                 self.voted(Frame::decode(v), sink);
             }
+            // Every verified channel holds the reference's frame: it is the majority.
+            Mode::Super if all => {
+                if let Ok(f) = ref_decoded {
+                    sink(RxEvent::Frame(f));
+                }
+            }
             Mode::Super => match super_vote(&verified) {
                 SuperOutcome::Nothing => {}
                 SuperOutcome::Publish { frame, minority } => {
@@ -578,55 +598,48 @@ impl HansRx {
 
     /// Finds the next start edge on every aligned channel and moves the shared
     /// timing and the delays on. `verified`: the channels whose frame just passed.
-    fn next(&mut self, verified: u8, sink: &mut impl FnMut(RxEvent)) {
+    fn next(&mut self, verified: u8, same: u8, sink: &mut impl FnMut(RxEvent)) {
         let pred = self.timing.predicted();
-        let ratio = self.timing.ratio;
-        let mut edges: [Option<u32>; CHANNELS] = [None; CHANNELS];
-        for (n, ((ch, ring), (edge, stats))) in self
-            .channels
-            .iter_mut()
-            .zip(&self.rings)
-            .zip(edges.iter_mut().zip(self.stats.iter_mut()))
-            .enumerate()
-        {
-            let Some(d) = ch.delay else { continue };
-            if self.used & (1 << n) == 0 {
-                continue;
-            }
-            *edge = Channel::edge(ring, pred.wrapping_add(d as u32), ratio);
-            if edge.is_none() {
-                ch.unalign();
-                stats.resyncs = stats.resyncs.wrapping_add(1);
-                sink(RxEvent::Fault {
-                    channel: Some(number(n)),
-                    kind: FaultKind::Resync,
-                });
-            }
-        }
         // Each channel's estimate of the shared start edge, as an error against the
-        // prediction. Channels that just verified are trusted; the others only when
-        // none did. The upper median shrugs off a glitch on a minority of channels
-        // (a glitch before the real edge reads early).
+        // prediction. A channel that matched the reference centre for centre and
+        // whose delay has settled is certainly still aligned, so it is measured only
+        // every [`REMEASURE`]th frame, or when the reference's edge is missing or
+        // untrusted.
         let mut errs = [0i32; CHANNELS];
+        self.frames = self.frames.wrapping_add(1);
+        let settled = bits(same & !(1 << self.reference))
+            .filter(|&n| self.channels.get(n).is_some_and(Channel::settled))
+            .fold(0u8, |m, n| m | 1 << n);
+        let skip = if self.frames % REMEASURE == 0 {
+            0
+        } else {
+            settled
+        };
+        let mut found = self.edges(self.used & !skip, pred, &mut errs, sink);
+        if found & verified & (1 << self.reference) == 0 {
+            found |= self.edges(skip, pred, &mut errs, sink);
+        }
+        // Channels that just verified are trusted; the others only when none did.
+        // The upper median shrugs off a glitch on a minority of channels (a glitch
+        // before the real edge reads early).
+        let trusted = if found & verified != 0 {
+            found & verified
+        } else {
+            found
+        };
+        let mut picked = [0i32; CHANNELS];
         let mut count = 0;
-        for trusted in [verified, 0xFF] {
-            for (n, (edge, ch)) in edges.iter().zip(&self.channels).enumerate() {
-                if let (Some(e), Some(d), true) = (edge, ch.delay, trusted & (1 << n) != 0) {
-                    if let Some(slot) = errs.get_mut(count) {
-                        *slot = diff(*e, pred).wrapping_sub(d);
-                        count += 1;
-                    }
-                }
-            }
-            if count > 0 {
-                break;
+        for n in bits(trusted) {
+            if let (Some(slot), Some(&e)) = (picked.get_mut(count), errs.get(n)) {
+                *slot = e;
+                count += 1;
             }
         }
-        let Some(errs) = errs.get_mut(..count) else {
-            return;
-        };
-        errs.sort_unstable();
-        let Some(&err) = errs.get(count / 2) else {
+        let picked = picked.get_mut(..count).unwrap_or_default();
+        if count > 1 {
+            picked.sort_unstable();
+        }
+        let Some(&err) = picked.get(count / 2) else {
             self.lose(sink);
             return;
         };
@@ -637,33 +650,25 @@ impl HansRx {
         // Each delay follows its channel's deviation from the consensus only, so a
         // lone channel's delay stays put and the shared filter alone smooths its
         // jitter.
-        for (n, (edge, (ch, stats))) in edges
-            .iter()
-            .zip(self.channels.iter_mut().zip(self.stats.iter_mut()))
-            .enumerate()
-        {
-            if let (Some(e), Some(_)) = (edge, ch.delay) {
-                if !ch.track(diff(*e, pred).wrapping_sub(err)) {
-                    stats.resyncs = stats.resyncs.wrapping_add(1);
-                    sink(RxEvent::Fault {
-                        channel: Some(number(n)),
-                        kind: FaultKind::Resync,
-                    });
-                }
+        for n in bits(found) {
+            let (Some(ch), Some(stats), Some(&e)) =
+                (self.channels.get_mut(n), self.stats.get_mut(n), errs.get(n))
+            else {
+                continue;
+            };
+            let Some(d) = ch.delay else { continue };
+            if !ch.track(e.wrapping_add(d).wrapping_sub(err)) {
+                stats.resyncs = stats.resyncs.wrapping_add(1);
+                sink(RxEvent::Fault {
+                    channel: Some(number(n)),
+                    kind: FaultKind::Resync,
+                });
             }
         }
         // Keep the reference while it verifies and has its edge; otherwise the first
         // channel that does, or at least has an edge.
-        let good = |n: usize, need: u8| {
-            matches!(edges.get(n), Some(Some(_))) && need & (1 << n) != 0
-        };
-        if !good(self.reference, verified) {
-            if let Some(n) = (0..CHANNELS)
-                .find(|&n| good(n, verified))
-                .or_else(|| (0..CHANNELS).find(|&n| good(n, 0xFF)))
-            {
-                self.reference = n;
-            }
+        if trusted & (1 << self.reference) == 0 {
+            self.reference = trusted.trailing_zeros() as usize;
         }
         if verified == 0 {
             self.dry = self.dry.saturating_add(1);
@@ -675,6 +680,46 @@ impl HansRx {
         } else {
             self.dry = 0;
         }
+    }
+
+    /// Searches the next start edge of the aligned channels of `mask` around their
+    /// predicted positions; stores each one's error against `pred` in `errs` and
+    /// returns those found. A channel without an edge loses its alignment.
+    fn edges(
+        &mut self,
+        mask: u8,
+        pred: u32,
+        errs: &mut [i32; CHANNELS],
+        sink: &mut impl FnMut(RxEvent),
+    ) -> u8 {
+        let ratio = self.timing.ratio;
+        let mut found = 0u8;
+        for n in bits(mask) {
+            let (Some(ch), Some(ring), Some(stats), Some(err)) = (
+                self.channels.get_mut(n),
+                self.rings.get(n),
+                self.stats.get_mut(n),
+                errs.get_mut(n),
+            ) else {
+                continue;
+            };
+            let Some(d) = ch.delay else { continue };
+            match Channel::edge(ring, pred.wrapping_add(d as u32), ratio) {
+                Some(e) => {
+                    *err = diff(e, pred).wrapping_sub(d);
+                    found |= 1 << n;
+                }
+                None => {
+                    ch.unalign();
+                    stats.resyncs = stats.resyncs.wrapping_add(1);
+                    sink(RxEvent::Fault {
+                        channel: Some(number(n)),
+                        kind: FaultKind::Resync,
+                    });
+                }
+            }
+        }
+        found
     }
 
     /// Gives up the shared timing: every aligned channel reports a resync, and the
@@ -693,6 +738,16 @@ impl HansRx {
             }
         }
     }
+}
+
+/// The indices of the set bits of `mask`, lowest first.
+fn bits(mask: u8) -> impl Iterator<Item = usize> {
+    let mut m = mask;
+    core::iter::from_fn(move || {
+        let n = m.trailing_zeros() as usize;
+        m &= m.wrapping_sub(1);
+        (n < 8).then_some(n)
+    })
 }
 
 /// Channel number 1..=5 of channel index 0..=4.

@@ -32,10 +32,42 @@ pub const fn diff(a: u32, b: u32) -> i32 {
     a.wrapping_sub(b) as i32
 }
 
-/// One channel's samples.
+/// The top `n` bits (n <= 32).
+fn all_top(n: u32) -> u32 {
+    !u32::MAX.checked_shr(n).unwrap_or(0)
+}
+
+/// Bits appended left-aligned to four words.
+struct Acc {
+    words: [u32; 4],
+    full: usize,
+    cur: u32,
+    used: u32,
+}
+
+impl Acc {
+    /// Appends the top `n` bits of `bits` (the rest zero, n <= 12).
+    #[inline(always)]
+    fn push(&mut self, bits: u32, n: u32) {
+        self.cur |= bits >> self.used;
+        self.used += n;
+        if self.used >= 32 {
+            if let Some(w) = self.words.get_mut(self.full) {
+                *w = self.cur;
+            }
+            self.full += 1;
+            self.used -= 32;
+            // `used` < n here, so the shift is 1..=12.
+            self.cur = bits << (n - self.used);
+        }
+    }
+}
+
+/// One channel's samples, stored as windows: slot `j % 32` holds window `j` (words
+/// `2j` and `2j + 1`), so reading a window is one load.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub struct Ring {
-    words: [u16; RING_WORDS],
+    windows: [u32; RING_WORDS / 2],
 }
 
 /// The centre samples of one frame on the reference channel, per window: which
@@ -55,144 +87,154 @@ pub struct Centres {
 impl Default for Ring {
     fn default() -> Self {
         Ring {
-            words: [0; RING_WORDS],
+            windows: [0; RING_WORDS / 2],
         }
     }
 }
 
 impl Ring {
-    /// Stores `src` as stream words `at`, `at + 1`, ... (`src` no longer than the
-    /// ring; older words are overwritten).
+    /// Stores `src` as stream words `at`, `at + 1`, ... (older words are
+    /// overwritten). Whole windows are written in one store.
     pub fn write(&mut self, at: u32, src: &[u16]) {
-        let slot = at as usize % RING_WORDS;
-        let first = src.len().min(RING_WORDS - slot);
-        let (a, b) = src.split_at(first);
-        if let Some(dst) = self.words.get_mut(slot..slot + a.len()) {
-            dst.copy_from_slice(a);
+        let mut at = at;
+        let mut src = src;
+        if at & 1 == 1 {
+            if let Some((&w, rest)) = src.split_first() {
+                if let Some(slot) = self.slot_mut(at >> 1) {
+                    *slot = *slot & 0xFFFF_0000 | u32::from(w);
+                }
+                src = rest;
+                at = at.wrapping_add(1);
+            }
         }
-        if let Some(dst) = self.words.get_mut(..b.len()) {
-            dst.copy_from_slice(b);
+        let mut pairs = src.chunks_exact(2);
+        for pair in &mut pairs {
+            if let (Some(slot), [a, b]) = (self.slot_mut(at >> 1), pair) {
+                *slot = u32::from(*a) << 16 | u32::from(*b);
+            }
+            at = at.wrapping_add(2);
         }
+        if let (Some(&w), Some(slot)) = (pairs.remainder().first(), self.slot_mut(at >> 1)) {
+            *slot = *slot & 0xFFFF | u32::from(w) << 16;
+        }
+    }
+
+    fn slot_mut(&mut self, j: u32) -> Option<&mut u32> {
+        self.windows.get_mut(j as usize % (RING_WORDS / 2))
+    }
+
+    /// Stream word `i` and the one before it.
+    pub fn word_and_prev(&self, i: u32) -> (u32, u32) {
+        (self.word(i), self.word(i.wrapping_sub(1)))
     }
 
     /// Stream word `i`.
     fn word(&self, i: u32) -> u32 {
-        self.words
-            .get(i as usize % RING_WORDS)
-            .map_or(0, |&w| u32::from(w))
+        let w = self.window(i >> 1);
+        if i & 1 == 0 {
+            w >> 16
+        } else {
+            w & 0xFFFF
+        }
     }
 
     /// Window `j` (32 samples from sample `32 j`).
+    #[inline(always)]
     pub fn window(&self, j: u32) -> u32 {
-        self.word(j.wrapping_mul(2)) << 16 | self.word(j.wrapping_mul(2).wrapping_add(1))
+        self.windows
+            .get(j as usize % (RING_WORDS / 2))
+            .copied()
+            .unwrap_or(0)
     }
 
     /// The first falling edge (a low sample right after a high one) whose low sample
-    /// lies in `lo..=hi` (Q16 positions, rounded down to samples; at most a few words
+    /// lies in `lo..=hi` (Q16 positions, rounded down to samples, at most 31 samples
     /// apart). Returns the edge position, half a sample before that low sample.
     pub fn first_fall(&self, lo: u32, hi: u32) -> Option<u32> {
-        let s_lo = lo >> FRAC;
-        let s_hi = hi >> FRAC;
-        // Samples are numbered modulo 65 536 (positions wrap), words modulo 4 096.
-        let span = s_hi.wrapping_sub(s_lo) & 0xFFFF;
-        if span > 64 {
+        // Samples are numbered modulo 65 536 (positions wrap). The 32 samples from the
+        // one before `lo` hold the whole range.
+        let s0 = (lo >> FRAC).wrapping_sub(1) & 0xFFFF;
+        let span = (hi >> FRAC).wrapping_sub(s0) & 0xFFFF;
+        if span == 0 || span > 31 {
             return None;
         }
-        let mut word = s_lo >> 4;
-        let last = s_hi >> 4;
-        let mut prev = self.word(word.wrapping_sub(1));
-        for _ in 0..6 {
-            let w = self.word(word);
-            let x = prev << 16 | w;
-            // Bit k of `falls`: sample 15 - k of this word is low, the one before high.
-            let mut falls = !x & (x >> 1) & 0xFFFF;
-            if word == s_lo >> 4 {
-                falls &= 0xFFFF >> (s_lo & 15);
-            }
-            if word == last {
-                falls &= !(0x7FFF >> (s_hi & 15));
-            }
-            if falls != 0 {
-                let s = (word << 4) + falls.leading_zeros() - 16;
-                return Some((s << FRAC).wrapping_sub(HALF));
-            }
-            if word == last {
-                break;
-            }
-            prev = w;
-            word = (word + 1) & 0xFFF;
+        let (j, off) = (s0 >> 5, s0 & 31);
+        let x = self.window(j) << off | (self.window(j.wrapping_add(1)) >> 1) >> (31 - off);
+        // Bit 31 - i of `falls`: sample s0 + i is low and the one before high.
+        let falls = !x & (x >> 1) & (u32::MAX << (31 - span));
+        if falls == 0 {
+            return None;
         }
-        None
+        let s = (s0 + falls.leading_zeros()) & 0xFFFF;
+        Some((s << FRAC).wrapping_sub(HALF))
     }
 
     /// The 125 bit-centre samples of a frame whose first centre is at `first` (Q16,
     /// plus half a sample so that truncation rounds), `ratio` (Q16) apart, gathered
     /// window by window with `table` ([`super::table`]): the raw pattern (first bit
-    /// at bit 124) and, when `centres` is given, the masks and values the other
-    /// channels are checked against.
-    pub fn gather(
-        &self,
-        table: &mut Table,
-        first: u32,
-        ratio: u32,
-        mut centres: Option<&mut Centres>,
-    ) -> u128 {
+    /// at bit 124). `centres` receives the masks and values the other channels are
+    /// checked against.
+    pub fn gather(&self, table: &mut Table, first: u32, ratio: u32, centres: &mut Centres) -> u128 {
+        let slots = core::hint::black_box(table.slots);
         let mut j = first >> (FRAC + 5);
-        if let Some(c) = centres.as_deref_mut() {
-            c.first = j;
-        }
+        centres.first = j;
         // The first window starts anywhere before the first centre: its entry is the
         // one of the phase `skip` bit times earlier, minus those `skip` centres.
         let phase = first.wrapping_sub(j << (FRAC + 5));
-        let skip = phase / ratio.max(1);
-        let mut pos = first.wrapping_sub(skip.wrapping_mul(ratio));
-        let mut skip = skip.min(12);
-        let mut left = FRAME_BITS as u32;
-        let mut words = [0u32; 4];
-        let mut full = 0;
-        let mut cur = 0u32;
-        let mut used = 0u32;
-        let mut k = 0;
-        while left > 0 && k < MAX_WINDOWS {
-            let e = table.entry(diff(pos, j << (FRAC + 5)));
-            let x = self.window(j);
-            let mut all = e.all;
-            for _ in 0..skip {
-                all &= !0x8000_0000u32.checked_shr(all.leading_zeros()).unwrap_or(0);
-            }
-            let n = e.count.saturating_sub(skip).min(left);
-            let bits = (e.bits(x) << skip) & !(u32::MAX >> n);
-            for _ in n + skip..e.count {
-                all &= all.wrapping_sub(1);
-            }
-            if let Some(c) = centres.as_deref_mut() {
-                if let (Some(m), Some(v)) = (c.masks.get_mut(k), c.values.get_mut(k)) {
-                    *m = all;
-                    *v = x & all;
-                }
-            }
-            // Append the n bits, left-aligned, to the pattern words.
-            cur |= bits >> used;
-            used += n;
-            if used >= 32 {
-                if let Some(w) = words.get_mut(full) {
-                    *w = cur;
-                }
-                full += 1;
-                used -= 32;
-                cur = if used == 0 { 0 } else { bits << (n - used) };
-            }
-            pos = pos.wrapping_add((n + skip).wrapping_mul(ratio));
-            left -= n;
-            skip = 0;
+        let skip = (phase / ratio.max(1)).min(12);
+        let e = table.entry(diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5)));
+        let x = self.window(j);
+        let mut all = e.all;
+        for _ in 0..skip {
+            all &= !0x8000_0000u32.checked_shr(all.leading_zeros()).unwrap_or(0);
+        }
+        let n = e.count.saturating_sub(skip);
+        let mut acc = Acc {
+            words: [0; 4],
+            full: 0,
+            cur: e.bits(x, slots) << skip,
+            used: n,
+        };
+        let mut left = FRAME_BITS as u32 - n;
+        let mut pos = first.wrapping_add(n.wrapping_mul(ratio));
+        if let (Some(m), Some(v)) = (centres.masks.first_mut(), centres.values.first_mut()) {
+            *m = all;
+            *v = x & all;
+        }
+        let mut k = 1;
+        // Whole windows: every centre is a frame bit.
+        while k < MAX_WINDOWS - 1 {
             j = j.wrapping_add(1);
+            let e = table.entry(diff(pos, j << (FRAC + 5)));
+            let n = e.count;
+            if n >= left {
+                break;
+            }
+            let x = self.window(j);
+            acc.push(e.bits(x, slots), n);
+            if let (Some(m), Some(v)) = (centres.masks.get_mut(k), centres.values.get_mut(k)) {
+                *m = e.all;
+                *v = x & e.all;
+            }
+            pos = pos.wrapping_add(n.wrapping_mul(ratio));
+            left -= n;
             k += 1;
         }
-        if let Some(c) = centres {
-            c.count = k;
+        // The last window: its first `left` centres.
+        let e = table.entry(diff(pos, j << (FRAC + 5)));
+        let x = self.window(j);
+        let mut all = e.all;
+        for _ in left.min(e.count)..e.count {
+            all &= all.wrapping_sub(1);
         }
-        let [a, b, c, _] = words;
-        (u128::from(a) << 96 | u128::from(b) << 64 | u128::from(c) << 32 | u128::from(cur)) >> 3
+        acc.push(e.bits(x, slots) & all_top(left), left.min(e.count));
+        if let (Some(m), Some(v)) = (centres.masks.get_mut(k), centres.values.get_mut(k)) {
+            *m = all;
+            *v = x & all;
+        }
+        centres.count = k + 1;
+        let [a, b, c, _] = acc.words;
+        (u128::from(a) << 96 | u128::from(b) << 64 | u128::from(c) << 32 | u128::from(acc.cur)) >> 3
     }
 
     /// True when this channel, `d` samples later than the reference (at most ±31),

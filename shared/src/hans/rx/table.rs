@@ -27,13 +27,10 @@ pub const SLOTS: usize = 72;
 /// Largest rate change (Q16 samples per bit) an entry tolerates: 11 centres later it
 /// moves the last one by 1/32 sample.
 const RATE_SLACK: i32 = (1 << FRAC) / 32 / 11;
-/// Result bits that can hold group g's centres (k = g, g + 4, g + 8 at 31 - k).
-const GROUP_SLOTS: [u32; 4] = [
-    1 << 31 | 1 << 27 | 1 << 23,
-    1 << 30 | 1 << 26 | 1 << 22,
-    1 << 29 | 1 << 25 | 1 << 21,
-    1 << 28 | 1 << 24 | 1 << 20,
-];
+/// Result bits that can hold a group's centres: every group's product puts its
+/// centres `k, k + 4, k + 8` at bits 31, 27, 23, and the four are then OR-ed in one
+/// bit apart (the M7 shifts an operand for free), so one mask constant serves all.
+const SLOTS_MASK: u32 = 1 << 31 | 1 << 27 | 1 << 23;
 
 /// The centres of a window whose first centre is in one phase slot.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
@@ -51,20 +48,32 @@ pub struct Entry {
 impl Entry {
     /// The window's centre samples, first in bit 31, in its top `count` bits; the
     /// bits below are zero.
-    pub fn bits(&self, x: u32) -> u32 {
-        let mut out = 0;
-        for ((m, k), s) in self.masks.iter().zip(&self.mults).zip(GROUP_SLOTS) {
-            out |= (x & m).wrapping_mul(*k) & s;
-        }
-        out & !(u32::MAX >> self.count)
+    /// `slots` is [`Table::slots`]: a run-time value, so the compiler keeps one
+    /// mask register and shifted OR operands instead of four mask constants.
+    #[inline(always)]
+    pub fn bits(&self, x: u32, slots: u32) -> u32 {
+        let [m0, m1, m2, m3] = self.masks;
+        let [k0, k1, k2, k3] = self.mults;
+        let g = |m: u32, k: u32| (x & m).wrapping_mul(k) & slots;
+        g(m0, k0) | g(m1, k1) >> 1 | g(m2, k2) >> 2 | g(m3, k3) >> 3
     }
 }
+
+/// Stands for an entry out of range (cannot happen: the slot is clamped).
+static EMPTY: Entry = Entry {
+    masks: [0; 4],
+    mults: [0; 4],
+    count: 0,
+    all: 0,
+};
 
 /// Entries for every phase slot at one rate.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub struct Table {
+    /// Always [`SLOTS_MASK`].
+    pub slots: u32,
     /// The rate the entries are built for (Q16 samples per bit).
-    ratio: i32,
+    pub(super) ratio: i32,
     entries: [Entry; SLOTS],
 }
 
@@ -72,6 +81,7 @@ impl Table {
     /// An empty table for `ratio` (Q16).
     pub fn new(ratio: i32) -> Table {
         Table {
+            slots: SLOTS_MASK,
             ratio,
             entries: [Entry::default(); SLOTS],
         }
@@ -89,17 +99,18 @@ impl Table {
 
     /// The entry for a window whose first centre (plus half a sample) is `phase`
     /// (Q16) after its start.
-    pub fn entry(&mut self, phase: i32) -> Entry {
-        let slot = (phase.max(0) >> SLOT_BITS) as usize;
-        let slot = slot.min(SLOTS - 1);
+    #[inline(always)]
+    pub fn entry(&mut self, phase: i32) -> &Entry {
+        let slot = ((phase.max(0) >> SLOT_BITS) as usize).min(SLOTS - 1);
         let ratio = self.ratio;
         match self.entries.get_mut(slot) {
-            Some(e) if e.count != 0 => *e,
             Some(e) => {
-                *e = build(slot as u32, ratio);
-                *e
+                if e.count == 0 {
+                    *e = build(slot as u32, ratio);
+                }
+                e
             }
-            None => Entry::default(),
+            None => &EMPTY,
         }
     }
 }
@@ -115,8 +126,9 @@ fn build(slot: u32, ratio: i32) -> Entry {
         let g = (k % 4) as usize;
         if let (Some(m), Some(mult)) = (e.masks.get_mut(g), e.mults.get_mut(g)) {
             *m |= 1 << (31 - p);
-            // p >= k: centres are at least a sample apart.
-            *mult = mult.wrapping_add(1 << (p - k));
+            // Centre k goes to bit 31 - 4 (k / 4) of its group's product; p >= k
+            // because centres are at least a sample apart.
+            *mult = mult.wrapping_add(1 << (p - k / 4 * 4));
         }
         e.all |= 1 << (31 - p);
         k += 1;
@@ -157,7 +169,11 @@ mod tests {
                     for (k, p) in centres.iter().enumerate() {
                         want |= ((w >> (31 - p)) & 1) << (31 - k);
                     }
-                    assert_eq!(e.bits(w), want, "ratio {ratio} slot {slot} window {w:#x}");
+                    assert_eq!(
+                        e.bits(w, SLOTS_MASK),
+                        want,
+                        "ratio {ratio} slot {slot} window {w:#x}"
+                    );
                 }
             }
             ratio += 97;

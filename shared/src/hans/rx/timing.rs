@@ -31,7 +31,7 @@ pub struct Timing {
     /// Start edge of the current frame (Q16 position, see [`super::ring`]).
     pub start: u32,
     /// Measurements in the current lock (selects the gains).
-    fits: i32,
+    pub(super) fits: i32,
 }
 
 impl Timing {
