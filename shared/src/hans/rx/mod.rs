@@ -7,49 +7,74 @@
 //! every ring covers the same 16 instants. [`HansRx::push`] takes the same stretch of
 //! each ring (e.g. one DMA half) in any chunking; results do not depend on it.
 //!
-//! # Per channel ([`channel`])
-//! Every channel used by the mode has its own clock recovery and framing: start-edge
-//! hunting on the `1 1 1 0 1` marker, bit-rate measurement over one frame, centre
-//! sampling, and a phase/rate tracking filter fed by the start edge of every frame.
-//! This yields one raw 125-bit pattern per channel and frame period.
+//! # One clock, one delay per channel
+//! All five channels come from one sender clock, so the receiver recovers the frame
+//! timing once ([`timing`]) and gives each channel only a delay against it
+//! ([`channel`]):
+//! 1. **Hunt** (no timing yet): every used channel looks for the `1 1 1 0 1`
+//!    start marker word by word; the first to see two of them one frame period
+//!    (±5 %) apart sets the timing: start edge and bit rate, measured over a whole
+//!    frame before any bit is trusted.
+//! 2. **Frames**: the words are copied into per-channel rings ([`ring`]); once a
+//!    frame and the window of the next start edge have arrived, it is decoded in one
+//!    go. The **reference** channel's 125 bit centres are gathered window by window
+//!    (32 samples) with a per-phase table and four multiplications ([`table`]);
+//!    every other aligned channel is checked **centre for centre** against the
+//!    reference's samples, shifted by the whole samples between their delays. A
+//!    channel that matches everywhere holds the reference's pattern; one that
+//!    differs anywhere is gathered in full at its own delay and checked on its own.
+//!    The centre-sample semantics are those of a per-channel sampler: a channel's
+//!    pattern is its samples nearest to `start + delay + (k + ½)·bit`.
+//! 3. **Tracking**: each channel's next start edge is searched ±1.5 bits around
+//!    its prediction (exactly one falling edge lies there on a good line). The
+//!    upper median of the edges of the channels that just verified (a glitch before
+//!    the real edge reads early) corrects phase and rate with an alpha-beta filter;
+//!    each channel's delay follows its own deviation from that consensus (averaged,
+//!    steps clamped to a sample). A channel that matched the reference and whose
+//!    delay has settled is re-measured only every eighth frame. A channel without
+//!    an edge, or failing three patterns in a row, drops its alignment and aligns
+//!    again at the next frame's start edge; when no channel is left, or none
+//!    verifies for three frames (a false lock), the hunt starts over. The reference
+//!    moves to another channel as soon as it stops verifying, so a line that dies
+//!    costs the others nothing.
+//!
+//! Skew between channels (up to ±2 samples, and more) is absorbed by the delays;
+//! jitter and rate offset are handled as by a per-channel receiver (see the README
+//! "Measured figures" for the limits).
 //!
 //! # Modes
 //! - [`Mode::Normal`]: one channel's pattern is checked by [`Frame::decode`]
 //!   (start pair, all 60 complement pairs, stop bits); only a frame that passes is
 //!   published.
 //! - [`Mode::Vote3`] / [`Mode::Vote5`]: **we vote per recovered bit**, not per raw
-//!   sample: each channel recovers its own bits with its own timing, so up to ±2
-//!   samples of skew between channels (two thirds of a bit at 3x) is absorbed by the
-//!   per-channel timing instead of smearing the vote. The patterns of one frame
-//!   period are combined by bitwise majority (2 of 3, 3 of 5) and the result must
-//!   still pass every check. A channel without a pattern in that period (no sync)
-//!   votes zeros, as a dead line would.
+//!   sample: each channel's bits are taken at its own delay, so skew between
+//!   channels is absorbed instead of smearing the vote. The patterns of one frame
+//!   are combined by bitwise majority (2 of 3, 3 of 5) and the result must still
+//!   pass every check. A channel without a pattern (not aligned) votes zeros, as a
+//!   dead line would. When every voter matched the reference, the majority is the
+//!   reference's pattern.
 //! - [`Mode::Super`]: every channel's pattern is checked on its own; the frame held
 //!   by a **strict majority of the verified channels** is published (one verified
 //!   channel alone suffices); verified channels that disagree without a strict
-//!   majority reject the period ([`FaultKind::Disagree`] on [`Line::Framing`]), and
+//!   majority reject the frame ([`FaultKind::Disagree`] on [`Line::Framing`]), and
 //!   verified channels in the minority get a per-channel `Disagree`.
-//!
-//! Patterns of one period are grouped by time: the channels finish a frame within a
-//! few samples of each other, so a period closes when every used channel has
-//! reported, or two words (32 samples) after the first report.
 //!
 //! # Events and counters
 //! A sink receives [`RxEvent`]s: frames, per-channel faults (check failed, resync,
-//! disagreement) and period faults; [`RxEvent::to_line_event`] gives the bridge's
+//! disagreement) and frame faults; [`RxEvent::to_line_event`] gives the bridge's
 //! [`LineEvent`]. Per-channel [`ChannelStats`] count frames that passed, frames that
 //! failed a check and losses of alignment. No frame that failed a check is ever
 //! published, nothing panics, and the work per word is bounded.
 //!
-//! # Cost (QEMU Cortex-M7, `cargo xtask qemu`)
-//! Every used channel runs the full sampler, so the cost grows with the channels:
-//! about 4 400 instructions per frame for one channel at 3x, 5 200 at 4x, 12 200 for
-//! vote3 and 19 700-19 900 for vote5 / super (5 channels, 3x). **This is far over the
-//! 1 200-instruction frame budget.** The per-bit sampler (about 7 instructions per
-//! bit, 125 bits per channel and frame) is the floor of this design; meeting the
-//! budget needs the shared-timing design sketched in the branch report (one clock
-//! recovery for all channels, table-driven bit gathering, and the other channels
-//! verified by masked word compares against the reference).
+//! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
+//! About 2 100 instructions per frame for one channel at 3x (2 300 at 4x), 3 300
+//! for vote3 and 4 200 for vote5 / super (5 channels, 3x), against 4 400 / 5 200 /
+//! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame that is
+//! roughly: gathering the reference ~1 000 (about 65 per 32-sample window), its
+//! decode 150, copying the rings ~3 per word and channel, and per other channel
+//! ~13 per window for the centre compare plus ~100 of bookkeeping. **Still over
+//! the 1 200-instruction budget of the worst path**; what is left is listed in the
+//! README ("Known limits").
 
 pub mod channel;
 pub mod modes;
@@ -434,12 +459,12 @@ impl HansRx {
         let Some(ring) = self.rings.get(reference) else {
             return;
         };
-        let ref_pattern = ring.gather(
-            &mut self.table,
-            start.wrapping_add(ref_delay as u32).wrapping_add(half_bit),
-            ratio as u32,
-            &mut self.centres,
-        );
+        let first = start.wrapping_add(ref_delay as u32).wrapping_add(half_bit);
+        let ref_pattern = if aligned == 1 << reference {
+            ring.gather::<false>(&mut self.table, first, ratio as u32, &mut self.centres)
+        } else {
+            ring.gather::<true>(&mut self.table, first, ratio as u32, &mut self.centres)
+        };
         let mut patterns = [None; CHANNELS];
         let mut same = 1u8 << reference;
         for n in bits(aligned) {
@@ -458,7 +483,7 @@ impl HansRx {
                 same |= 1 << n;
                 ref_pattern
             } else {
-                ring.gather(
+                ring.gather::<false>(
                     &mut self.table,
                     start.wrapping_add(d as u32).wrapping_add(half_bit),
                     ratio as u32,
@@ -610,7 +635,7 @@ impl HansRx {
         let settled = bits(same & !(1 << self.reference))
             .filter(|&n| self.channels.get(n).is_some_and(Channel::settled))
             .fold(0u8, |m, n| m | 1 << n);
-        let skip = if self.frames % REMEASURE == 0 {
+        let skip = if self.frames.is_multiple_of(REMEASURE) {
             0
         } else {
             settled

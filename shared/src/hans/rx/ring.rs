@@ -7,11 +7,12 @@
 //! of the stream is at `s << 16`, so a position wraps every 65 536 samples (4 096
 //! words). Every distance the receiver works with is far below half of that, so
 //! differences are taken with wrapping arithmetic and read as `i32`. Word `i` of the
-//! stream (its 16 samples start at `i << 20`) lives in slot `i % RING_WORDS`.
+//! stream has its 16 samples from `i << 20`.
 //!
 //! # Windows
 //! Window `j` is the 32 samples from `32 j`, i.e. words `2j` and `2j + 1` (earlier word
-//! in the high half), so sample `32 j + b` is bit `31 - b` of it.
+//! in the high half), so sample `32 j + b` is bit `31 - b` of it. The ring stores
+//! windows (slot `j % 32`), so every read is one load.
 
 use super::table::Table;
 use crate::hans::FRAME_BITS;
@@ -172,9 +173,16 @@ impl Ring {
     /// The 125 bit-centre samples of a frame whose first centre is at `first` (Q16,
     /// plus half a sample so that truncation rounds), `ratio` (Q16) apart, gathered
     /// window by window with `table` ([`super::table`]): the raw pattern (first bit
-    /// at bit 124). `centres` receives the masks and values the other channels are
-    /// checked against.
-    pub fn gather(&self, table: &mut Table, first: u32, ratio: u32, centres: &mut Centres) -> u128 {
+    /// at bit 124). With `KEEP`, `centres` receives the masks and values the other
+    /// channels are checked against (a lone channel needs none).
+    #[inline(never)]
+    pub fn gather<const KEEP: bool>(
+        &self,
+        table: &mut Table,
+        first: u32,
+        ratio: u32,
+        centres: &mut Centres,
+    ) -> u128 {
         let slots = core::hint::black_box(table.slots);
         let mut j = first >> (FRAC + 5);
         centres.first = j;
@@ -197,7 +205,9 @@ impl Ring {
         };
         let mut left = FRAME_BITS as u32 - n;
         let mut pos = first.wrapping_add(n.wrapping_mul(ratio));
-        if let (Some(m), Some(v)) = (centres.masks.first_mut(), centres.values.first_mut()) {
+        if let (true, Some(m), Some(v)) =
+            (KEEP, centres.masks.first_mut(), centres.values.first_mut())
+        {
             *m = all;
             *v = x & all;
         }
@@ -212,7 +222,9 @@ impl Ring {
             }
             let x = self.window(j);
             acc.push(e.bits(x, slots), n);
-            if let (Some(m), Some(v)) = (centres.masks.get_mut(k), centres.values.get_mut(k)) {
+            if let (true, Some(m), Some(v)) =
+                (KEEP, centres.masks.get_mut(k), centres.values.get_mut(k))
+            {
                 *m = e.all;
                 *v = x & e.all;
             }
@@ -228,7 +240,9 @@ impl Ring {
             all &= all.wrapping_sub(1);
         }
         acc.push(e.bits(x, slots) & all_top(left), left.min(e.count));
-        if let (Some(m), Some(v)) = (centres.masks.get_mut(k), centres.values.get_mut(k)) {
+        if let (true, Some(m), Some(v)) =
+            (KEEP, centres.masks.get_mut(k), centres.values.get_mut(k))
+        {
             *m = all;
             *v = x & all;
         }
