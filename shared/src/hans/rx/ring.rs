@@ -253,6 +253,7 @@ impl Ring {
 
     /// True when this channel, `d` samples later than the reference (at most ±31),
     /// has the reference's value at every centre of `centres`.
+    #[inline(never)]
     pub fn agrees(&self, centres: &Centres, d: i32) -> bool {
         let mut bad = 0u32;
         let mut j = centres.first;
