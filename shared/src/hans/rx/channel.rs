@@ -23,7 +23,7 @@ use super::ring::{diff, Ring, FRAC, HALF};
 const DELAY_FITS: i32 = 16;
 /// Largest delay against the shared timing (samples): two samples of skew plus jitter
 /// and filter slack. A channel further off is not the same line.
-const DELAY_MAX: i32 = 8 << FRAC;
+pub const DELAY_MAX: i32 = 8 << FRAC;
 
 /// Per-channel state.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]

@@ -16,8 +16,8 @@
 //!    (±5 %) apart sets the timing: start edge and bit rate, measured over a whole
 //!    frame before any bit is trusted.
 //! 2. **Frames**: the words are copied into per-channel rings ([`ring`]); once a
-//!    frame and the window of the next start edge have arrived, it is decoded in one
-//!    go. The **reference** channel's 125 bit centres are gathered window by window
+//!    frame's last bit has arrived on every channel, it is decoded in one go (and
+//!    published right away). The **reference** channel's 125 bit centres are gathered window by window
 //!    (32 samples) with a per-phase table and four multiplications ([`table`]);
 //!    every other aligned channel is checked **centre for centre** against the
 //!    reference's samples, shifted by the whole samples between their delays. A
@@ -67,8 +67,8 @@
 //! published, nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 2 100 instructions per frame for one channel at 3x (2 300 at 4x), 3 300
-//! for vote3 and 4 200 for vote5 / super (5 channels, 3x), against 4 400 / 5 200 /
+//! About 1 950 instructions per frame for one channel at 3x (2 100 at 4x), 3 250
+//! for vote3 and 4 250 for vote5 / super (5 channels, 3x), against 4 400 / 5 200 /
 //! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame that is
 //! roughly: gathering the reference ~1 000 (about 65 per 32-sample window), its
 //! decode 150, copying the rings ~3 per word and channel, and per other channel
@@ -82,7 +82,7 @@ pub mod ring;
 pub mod table;
 pub mod timing;
 
-use crate::hans::{DecodeError, Frame};
+use crate::hans::{DecodeError, Frame, FRAME_BITS};
 use crate::model::{FaultKind, Line, LineEvent};
 use channel::Channel;
 use modes::{majority3, majority5, super_vote, SuperOutcome};
@@ -238,6 +238,9 @@ pub struct HansRx {
     /// While locked: the stream word (modulo 4 096) before which the frame has all
     /// its samples ([`HansRx::need`]).
     need: u32,
+    /// The last decoded frame, whose successor's start edges are still to be
+    /// measured: the channels that verified and those that matched the reference.
+    pending: Option<(u8, u8)>,
     /// Index of the reference channel: gathered in full, the others compared to it.
     reference: usize,
     /// Consecutive frames in which no channel verified.
@@ -284,6 +287,7 @@ impl HansRx {
             centres: Centres::default(),
             locked: false,
             need: 0,
+            pending: None,
             reference: used.trailing_zeros() as usize,
             dry: 0,
             frames: 0,
@@ -340,7 +344,15 @@ impl HansRx {
                 // count words modulo 4 096, see `ring`).
                 let missing = ((self.need << 20).wrapping_sub(self.written << 20)) as i32 >> 20;
                 if missing <= 0 {
-                    self.frame(sink);
+                    // The start edges of this frame move the timing on from the
+                    // last one, then the frame is decoded.
+                    if let Some((verified, same)) = self.pending.take() {
+                        self.next(verified, same, sink);
+                    }
+                    if self.locked {
+                        self.frame(sink);
+                    }
+                    self.need = self.need();
                     continue;
                 }
                 if at >= len {
@@ -372,23 +384,32 @@ impl HansRx {
         self.written = self.written.wrapping_add(n as u32);
     }
 
-    /// The stream word (modulo 4 096) before which every sample the current frame
-    /// needs has arrived: its centres on every channel, the next start-edge windows,
-    /// and one window more for comparing a late channel.
+    /// The stream word (modulo 4 096) before which every sample the next frame
+    /// needs has arrived: its last bit centre on the latest channel, so a frame is
+    /// published as soon as its last bit is in.
     fn need(&self) -> u32 {
         let t = &self.timing;
-        let late = self
-            .channels
-            .iter()
-            .enumerate()
-            .filter(|(n, _)| self.used & (1 << n) != 0)
-            .filter_map(|(_, c)| c.delay)
-            .fold(0, i32::max);
-        let last = t
-            .predicted()
-            .wrapping_add(late as u32)
-            .wrapping_add(2 * t.ratio as u32);
-        ((last >> 21) + 2) << 1
+        let mut late = 0;
+        for n in bits(self.used) {
+            let d = self.channels.get(n).and_then(|c| c.delay);
+            // A channel aligning at this frame may be up to the delay limit late.
+            late = late.max(d.unwrap_or(channel::DELAY_MAX));
+        }
+        // The frame to decode next starts at the current edge, or, once that frame
+        // is done, at the predicted next one (whose edge window lies before its
+        // last centre).
+        let start = if self.pending.is_some() {
+            t.predicted()
+        } else {
+            t.start
+        };
+        let last = start
+            .wrapping_add((t.ratio as u32).wrapping_mul(FRAME_BITS as u32 - 1))
+            .wrapping_add((t.ratio / 2) as u32)
+            .wrapping_add(HALF);
+        // Two samples of slack: a table-gathered centre (or a shifted compare) may
+        // fall one sample after the exact position.
+        (last.wrapping_add(late as u32).wrapping_add(2 << FRAC) >> 20).wrapping_add(1)
     }
 
     /// Hunts in the word just stored, on every used channel; the first channel to
@@ -411,6 +432,7 @@ impl HansRx {
         if let Some((n, (start, period))) = lock {
             self.timing.lock(start, period);
             self.locked = true;
+            self.pending = None;
             self.reference = n;
             self.dry = 0;
             for ch in self.channels.iter_mut() {
@@ -492,8 +514,7 @@ impl HansRx {
             });
         }
         let verified = self.evaluate(&patterns, aligned, same, ref_pattern, sink);
-        self.next(verified, same, sink);
-        self.need = self.need();
+        self.pending = Some((verified, same));
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that
@@ -751,6 +772,7 @@ impl HansRx {
     /// hunt starts over from the next word.
     fn lose(&mut self, sink: &mut impl FnMut(RxEvent)) {
         self.locked = false;
+        self.pending = None;
         self.dry = 0;
         for (n, (ch, stats)) in self.channels.iter_mut().zip(&mut self.stats).enumerate() {
             ch.reset_hunt();
