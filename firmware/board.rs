@@ -63,7 +63,7 @@ use embassy_stm32::rcc::{
     VoltageScale,
 };
 use embassy_stm32::time::Hertz;
-use embassy_stm32::Peri;
+use embassy_stm32::{Peri, PeripheralType};
 
 #[cfg(feature = "board-custom-smps")]
 compile_error!(
@@ -134,6 +134,11 @@ pub struct Board {
     pub res: Resources,
 }
 
+/// The HANS-100 oversampling clock fs made by TIM3 (240 MHz / 6 on revision V,
+/// 200 MHz / 5 on revision Y: exact on both; README clock tree), 3.2 times the
+/// 12.5 MHz bit rate.
+pub const HANS_FS_HZ: u32 = 40_000_000;
+
 /// Controller-side XY2-100 input (README.md (section "Firmware") allocation table).
 pub struct Xy2InRes {
     /// TIM1, counting CLK on ETR.
@@ -144,18 +149,37 @@ pub struct Xy2InRes {
     pub dma: Peri<'static, DMA2_CH0>,
 }
 
-/// Controller-side XY3-100 X line + SYNC marks.
+/// One XY3-100 data line's receive-only SPI slave: the SPI, its SCK (from the shared
+/// SCK bus), MOSI (the line's pair), NSS (SYNC, pair 1) and RX DMA stream.
+pub struct SpiLineRes<S, K, M, N, D>
+where
+    S: PeripheralType + 'static,
+    K: PeripheralType + 'static,
+    M: PeripheralType + 'static,
+    N: PeripheralType + 'static,
+    D: PeripheralType + 'static,
+{
+    /// The SPI.
+    pub spi: Peri<'static, S>,
+    /// SCK.
+    pub sck: Peri<'static, K>,
+    /// MOSI.
+    pub mosi: Peri<'static, M>,
+    /// NSS.
+    pub nss: Peri<'static, N>,
+    /// RX DMA stream.
+    pub dma: Peri<'static, D>,
+}
+
+/// Controller-side XY3-100 data lines + SYNC marks.
 pub struct Xy3InRes {
-    /// SPI3 (X line).
-    pub spi: Peri<'static, SPI3>,
-    /// SCK from the shared SCK bus (AF6).
-    pub sck: Peri<'static, PC10>,
-    /// MOSI from pair 3 (AF6).
-    pub mosi: Peri<'static, PC12>,
-    /// NSS from pair 1 (XY3 SYNC, AF6).
-    pub nss: Peri<'static, PA15>,
-    /// DMA1 stream 0 (the SYNC-mark ISR reads its counter).
-    pub dma: Peri<'static, DMA1_CH0>,
+    /// X: SPI3 (SCK PC10, MOSI PC12 = pair 3, NSS PA15; AF6) on DMA1 stream 0 (the
+    /// SYNC-mark ISR reads its counter).
+    pub x: SpiLineRes<SPI3, PC10, PC12, PA15, DMA1_CH0>,
+    /// Y: SPI4 (SCK PE12, MOSI PE14 = pair 4, NSS PE11; AF5) on DMA1 stream 1.
+    pub y: SpiLineRes<SPI4, PE12, PE14, PE11, DMA1_CH1>,
+    /// Z: SPI5 (SCK PF7, MOSI PF9 = pair 5, NSS PF6; AF5) on DMA1 stream 2.
+    pub z: SpiLineRes<SPI5, PF7, PF9, PF6, DMA1_CH2>,
     /// SYNC again, as an EXTI input.
     pub sync: Peri<'static, PA4>,
     /// EXTI line 4.
@@ -303,11 +327,27 @@ pub fn init() -> Board {
                 dma: p.DMA2_CH0,
             },
             xy3_in: Xy3InRes {
-                spi: p.SPI3,
-                sck: p.PC10,
-                mosi: p.PC12,
-                nss: p.PA15,
-                dma: p.DMA1_CH0,
+                x: SpiLineRes {
+                    spi: p.SPI3,
+                    sck: p.PC10,
+                    mosi: p.PC12,
+                    nss: p.PA15,
+                    dma: p.DMA1_CH0,
+                },
+                y: SpiLineRes {
+                    spi: p.SPI4,
+                    sck: p.PE12,
+                    mosi: p.PE14,
+                    nss: p.PE11,
+                    dma: p.DMA1_CH1,
+                },
+                z: SpiLineRes {
+                    spi: p.SPI5,
+                    sck: p.PF7,
+                    mosi: p.PF9,
+                    nss: p.PF6,
+                    dma: p.DMA1_CH2,
+                },
                 sync: p.PA4,
                 exti: p.EXTI4,
                 sck_buffer_oe: p.PF14,

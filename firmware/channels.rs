@@ -14,13 +14,16 @@
 //!
 //! Flow (`[H]` = high-priority executor, others thread mode):
 //! ```text
-//! [H] xy2_in / xy3_in / hans_status_in --RAW_INPUT--> [H] bridge_wave_out
+//! [H] xy2_in --RAW_INPUT--> [H] bridge_wave_out <--XY3_INPUT-- [H] xy3_in
 //!     (receiver -> Bridge -> transmitter -> waveform ring; LASER_GATE, BRIDGE_BEAT,
 //!      LINK_RUNNING, CTRL_STATUS_OK)
-//! [H] hans_out <--HANS_FRAME-- (not fed by the bridge yet: README "What is left")
-//! status_level_in / backchannel RX --HEAD_STATUS--> bridge_wave_out, backchannel TX
-//! CTRL_STATUS_OK --> status_level_out;  BACK_RATE --> backchannel
+//! [H] xy2_in / xy3_in --> [H] bridge_hans_out (same inputs; HANS-100 head)
+//! [H] hans_status_in --HANS_STATUS_RAW--> hans_status --HEAD_STATUS--> bridge
+//! status_level_in / backchannel RX --HEAD_STATUS--> bridge_wave_out, stats
+//! bridge_wave_out --BACK_TX (bytes), BACK_RATE--> backchannel (UART7)
+//! CTRL_STATUS_OK --> status_level_out
 //! supervisor --HEALTH--> leds;  everyone --STATS--> stats
+//! stats --SNAPSHOT_WANTED--> [H] bridge_wave_out --BRIDGE_SNAPSHOT--> stats
 //! ```
 
 use core::cell::RefCell;
@@ -31,10 +34,11 @@ use embassy_sync::blocking_mutex::Mutex;
 
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
+use embassy_sync::pipe::Pipe;
 use embassy_sync::signal::Signal;
 use embassy_sync::watch::Watch;
-use shared::hans::frame::Frame as HansFrame;
-use shared::model::HeadStatus;
+use shared::bridge::{Counters, LinkState};
+use shared::model::{Alarms, HeadStatus};
 use shared::xy3::BackRate;
 
 /// Overall state shown on the LEDs.
@@ -56,10 +60,15 @@ pub static HEALTH: Watch<CriticalSectionRawMutex, Health, HEALTH_RECEIVERS> = Wa
 /// Samples per XY2-100 input half-buffer (one per bit: 512 bits = 25 frames at
 /// 2 MHz, a 256 us DMA half).
 pub const XY2_HALF: usize = 512;
-/// Bytes per XY3-100 input half-buffer (X line; 128 to 170 frames).
-pub const XY3_HALF: usize = 512;
-/// Frame-end marks carried with one XY3 half (a frame is at least 3 bytes).
-pub const XY3_MARKS: usize = XY3_HALF / 3 + 1;
+/// Bytes per XY3-100 input half-buffer and line (16 to 21 frames, 160 to 213 us at
+/// 100 kHz): half of `shared::xy3::rx::WINDOW`, the most the receiver may be fed
+/// between two polls.
+pub const XY3_HALF: usize = shared::xy3::rx::WINDOW / 2;
+/// XY3-100 data lines this board receives: X (SPI3), Y (SPI4), Z (SPI5).
+pub const XY3_LINES: usize = 3;
+/// Frame-end marks carried with one XY3 half: as many as the receiver lets wait
+/// (a half holds at most 21 frame ends; later ones stay queued for the next half).
+pub const XY3_MARKS: usize = shared::xy3::rx::MAX_PENDING_ENDS;
 /// 16-bit words per HANS STATUS input half-buffer (8192 samples at 40 MHz = 205 us).
 pub const HANS_HALF: usize = 512;
 
@@ -67,16 +76,52 @@ pub const HANS_HALF: usize = 512;
 /// The bridge (`tasks::line::bridge_wave_out`) runs the XY2 receiver on it.
 pub type RawInput = [u16; XY2_HALF];
 
+/// One DMA half of each XY3-100 data line (the configured ones first, in axis order;
+/// `layouts.md` §2) and the frame-end marks drained with it.
+#[derive(Clone)]
+pub struct Xy3Raw {
+    /// Reception session: the input restarts every line together (clock gated) after
+    /// an overrun, and byte counts start again at 0.
+    pub session: u32,
+    /// X ring byte count of `bytes[..][0]` within the session.
+    pub first_byte: u32,
+    /// `XY3_HALF` bytes per line.
+    pub bytes: [[u8; XY3_HALF]; XY3_LINES],
+    /// Frame-end positions (X byte counts within the session) drained with this half.
+    pub ends: heapless::Vec<u32, XY3_MARKS>,
+}
+
+/// XY3-100 halves to the bridge, drained once per output batch (up to two halves
+/// arrive per batch; four slots leave room for one late batch).
+pub static XY3_INPUT: Channel<CriticalSectionRawMutex, Xy3Raw, 4> = Channel::new();
+
 /// Raw input halves from the receivers to the bridge. The bridge drains it once per
 /// output batch (about one DMA half), so three slots cover a half arriving while the
 /// bridge waits for output space; a fourth would only hide a slow bridge.
 pub static RAW_INPUT: Channel<CriticalSectionRawMutex, RawInput, 3> = Channel::new();
 
-/// The newest HANS-100 frame for the head (written two slots ahead by `hans_out`).
-pub static HANS_FRAME: Signal<CriticalSectionRawMutex, HansFrame> = Signal::new();
+/// One half of the HANS-100 STATUS input (head side, SPI6 at `fs`), for the
+/// thread-mode decoder.
+pub type HansStatusRaw = [u16; HANS_HALF];
 
-/// Backchannel rate commanded by the controller (XY3-100 §6).
+/// HANS STATUS halves to `status::hans_status` (thread mode: its decoder is too slow
+/// for the high-priority executor, see README "What is left"). Only every
+/// `line::HANS_STATUS_EVERY`-th half is sent; a full queue drops the half.
+pub static HANS_STATUS_RAW: Channel<CriticalSectionRawMutex, HansStatusRaw, 1> = Channel::new();
+
+/// Backchannel rate to switch UART7 to (XY3-100 §6): raised by the bridge from
+/// `Output.controller_back_rate` (once the bytes for the old rate have left
+/// [`BACK_TX`]) or `Output.head_back_rate`. UART7 serves both sides (TX to the
+/// controller, RX from the head), so one rate applies to both.
 pub static BACK_RATE: Signal<CriticalSectionRawMutex, BackRate> = Signal::new();
+
+/// Capacity of [`BACK_TX`]: a few packets (a text packet is up to ~210 bytes).
+pub const BACK_TX_LEN: usize = 1024;
+
+/// Backchannel bytes towards an XY3-100 controller, written by the bridge
+/// (`Bridge::xy3_back_poll`, only when a whole packet fits: never a partial packet),
+/// sent by the backchannel task.
+pub static BACK_TX: Pipe<CriticalSectionRawMutex, BACK_TX_LEN> = Pipe::new();
 
 /// What the head reports, in the neutral model.
 pub static HEAD_STATUS: Watch<CriticalSectionRawMutex, HeadStatus, 2> = Watch::new();
@@ -107,6 +152,32 @@ pub static LINK_RUNNING: AtomicBool = AtomicBool::new(false);
 /// `xy2_status_line_high`, i.e. head alarms merged with the bridge's own).
 pub static CTRL_STATUS_OK: AtomicBool = AtomicBool::new(false);
 
+/// The bridge engine's own view for the statistics line: its counters (cumulative,
+/// saturating) and its link state and alarms, copied by the bridge task.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct BridgeSnapshot {
+    /// `Bridge::counters` (frames, faults per line, repeats, commands not carried).
+    pub counters: Counters,
+    /// The link state after the last output slot.
+    pub state: LinkState,
+    /// The bridge's own alarms (`INPUT_LOST`, `STATUS_LOST`).
+    pub alarms: Alarms,
+    /// What the controller is told: the head's alarms merged with the bridge's own.
+    pub reported: Alarms,
+    /// The laser gate as the bridge drove it after this batch.
+    pub gate: bool,
+}
+
+/// Set by the statistics task to ask for a [`BridgeSnapshot`]. The bridge task looks
+/// at it once per output batch and copies its state only when asked, so the
+/// high-priority loop pays the copy (a few hundred bytes inside a critical section)
+/// once a second, not every batch, and never waits for the reader.
+pub static SNAPSHOT_WANTED: AtomicBool = AtomicBool::new(false);
+
+/// The bridge's answer to [`SNAPSHOT_WANTED`] ("latest wins"; `signal` only takes
+/// the critical section for the copy, so the bridge task never blocks on it).
+pub static BRIDGE_SNAPSHOT: Signal<CriticalSectionRawMutex, BridgeSnapshot> = Signal::new();
+
 /// Counters for the once-a-second summary.
 pub struct Stats {
     /// Raw input halves handed to the bridge.
@@ -129,6 +200,10 @@ pub struct Stats {
     pub back_errors: AtomicU32,
     /// Head STATUS level changes.
     pub status_changes: AtomicU32,
+    /// Head STATUS frames that failed their check (HANS-100 STATUS).
+    pub status_faults: AtomicU32,
+    /// Frames the bridge gave that the head-side encoder refused (not sent).
+    pub output_refused: AtomicU32,
 }
 
 impl Stats {
@@ -155,4 +230,6 @@ pub static STATS: Stats = Stats {
     back_resyncs: AtomicU32::new(0),
     back_errors: AtomicU32::new(0),
     status_changes: AtomicU32::new(0),
+    status_faults: AtomicU32::new(0),
+    output_refused: AtomicU32::new(0),
 };

@@ -26,7 +26,8 @@ use {defmt_rtt as _, panic_probe as _};
 
 use config::{Controller, Head, Roles};
 use drivers::backchannel::{self, Backchannel};
-use tasks::{line, status};
+use shared::bridge::{StatusForm, ZSource};
+use tasks::{bridge, bridge_hans, line, status};
 
 /// Runs the line tasks at interrupt priority. UART8 is unused on this board, so its
 /// vector serves as the executor's software interrupt.
@@ -68,7 +69,7 @@ async fn main(spawner: Spawner) {
     // Each task is spawned once from a pool of one, so the tokens cannot be exhausted.
     spawner.spawn(tasks::supervisor(board.iwdg, board.laser_gate, fault).unwrap());
     spawner.spawn(tasks::leds(board.led_green, board.led_yellow, board.led_red).unwrap());
-    spawner.spawn(tasks::stats().unwrap());
+    spawner.spawn(tasks::stats::stats().unwrap());
 
     // The configuration baked in by build.rs, validated again here. Without it (or
     // for a role this board has no driver for) nothing else starts: head drivers off,
@@ -94,18 +95,6 @@ async fn main(spawner: Spawner) {
         }
     };
     defmt::info!("configuration: {}", roles);
-    if roles.controller == Controller::Xy3 {
-        defmt::warn!(
-            "XY3-100 controller: only the X line receiver runs (SPI3); the bridge is not \
-             fed, output stays idle and the laser gate off"
-        );
-    }
-    if roles.head == Head::Hans {
-        defmt::warn!(
-            "HANS-100 head: the SAI ring plays idle; the bridge is not wired to it yet, \
-             laser gate stays off"
-        );
-    }
 
     interrupt::UART8.set_priority(LINE_PRIORITY);
     let high = EXECUTOR_HIGH.start(interrupt::UART8);
@@ -135,7 +124,9 @@ async fn main(spawner: Spawner) {
                 .map(|rx| Backchannel::receive_only(rx, tasks::back_ring()))
         }
         Controller::Xy3 => {
-            high.spawn(line::xy3_in(r.xy3_in).unwrap());
+            // Z is received only when the bridge takes Z from the input.
+            let with_z = config.z.source == ZSource::Input;
+            high.spawn(line::xy3_in(r.xy3_in, with_z).unwrap());
             let b = r.back;
             Uart::new_with_de(
                 b.uart,
@@ -162,20 +153,36 @@ async fn main(spawner: Spawner) {
     // Head side.
     match roles.head {
         Head::Xy2 | Head::Xy3 => {
+            let mut status_pin = None;
             if roles.head == Head::Xy2 {
                 let pin = Input::new(r.head_status, Pull::None);
-                let level = shared::xy2::StatusLevel {
-                    polarity: config.head.xy2.polarity,
-                };
-                spawner.spawn(status::status_level_in(pin, level).unwrap());
+                match config.head.xy2.status {
+                    StatusForm::Level => {
+                        let level = shared::xy2::StatusLevel {
+                            polarity: config.head.xy2.polarity,
+                        };
+                        spawner.spawn(status::status_level_in(pin, level).unwrap());
+                    }
+                    // Sampled by TIM8 CC1 in the bridge task, which keeps the pin.
+                    StatusForm::Word => status_pin = Some(pin),
+                }
             }
-            let wave =
-                line::bridge_wave_out(r.wave, config, roles.head, roles.controller, head_enable);
+            let wave = bridge::bridge_wave_out(
+                r.wave,
+                config,
+                roles.head,
+                roles.controller,
+                head_enable,
+                status_pin,
+            );
             high.spawn(wave.unwrap());
         }
         Head::Hans => {
-            high.spawn(line::hans_out(r.hans_out, head_enable).unwrap());
+            let hans =
+                bridge_hans::bridge_hans_out(r.hans_out, config, roles.controller, head_enable);
+            high.spawn(hans.unwrap());
             high.spawn(line::hans_status_in(r.hans_status_in).unwrap());
+            spawner.spawn(status::hans_status().unwrap());
         }
     }
 }

@@ -147,6 +147,12 @@ impl<'a> SerialTx<'a> {
         }
     }
 
+    /// Bytes the DMA has still to fetch in this lap (DMA_SxNDTR, `RING_BYTES` down to
+    /// 1), the position `shared::hans::tx::Transmitter::update` works from.
+    pub fn remaining(&self) -> usize {
+        self.transfer.get_remaining_transfers() as usize
+    }
+
     /// The slot (0..8) whose bits the DMA is fetching now.
     pub fn sending_slot(&self) -> usize {
         let remaining = self.transfer.get_remaining_transfers() as usize;

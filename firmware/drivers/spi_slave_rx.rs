@@ -121,10 +121,14 @@ impl<'d, W: Word> SpiSlaveRx<'d, W> {
         let regs = T::REGS;
 
         // Pins first: inputs in their alternate function (a slave drives nothing).
+        // SCK is pulled down: on the board's shared SCK bus nobody drives it while the
+        // bus buffer is off (XY3-100 input gates its clock that way until every line's
+        // SPI is ready), and a floating clock would shift noise into some SPIs but
+        // not others. A driven clock (buffer, HANS fs timer) overrides the pull.
         let input = AfType::input(Pull::None);
         let sck_af = sck.af_num();
         let mut sck = Flex::new(sck);
-        sck.set_as_af_unchecked(sck_af, input);
+        sck.set_as_af_unchecked(sck_af, AfType::input(Pull::Down));
         let mosi_af = mosi.af_num();
         let mut mosi = Flex::new(mosi);
         mosi.set_as_af_unchecked(mosi_af, input);

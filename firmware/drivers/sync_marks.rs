@@ -32,8 +32,9 @@ use embassy_stm32::mode::Blocking;
 use embassy_stm32::peripherals::{EXTI4 as EXTI4_CH, PA4};
 use embassy_stm32::{pac, Peri};
 
-/// Queue depth: a frame is 3..4 bytes, the X ring reader drains at least once per
-/// half of a 512-byte ring, so up to ~170 marks can arrive per drain at full rate.
+/// Queue depth: a frame is 3..4 bytes, so a drain per 64-byte X half (the firmware's
+/// input task) finds at most 22 marks; 256 leaves room for a reader that is late by
+/// several halves (a test draining a whole 512-byte ring at once finds up to 171).
 const DEPTH: usize = 256;
 
 /// The X data line's DMA stream (board allocation: SPI3 RX on DMA1 stream 0).

@@ -24,12 +24,24 @@ impl Prng {
 mod tests {
     use embassy_stm32::gpio::{AfType, Flex, Input, Level, Output, OutputType, Pull, Speed};
     use embassy_stm32::peripherals::PA15;
+    use embassy_stm32::peripherals::PG8;
+    use embassy_stm32::time::Hertz;
+    use embassy_stm32::timer::low_level::CountingMode;
+    use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
     use embassy_stm32::usart::Uart;
     use embassy_stm32::{bind_interrupts, dma, pac, peripherals, usart, Peri};
     use embassy_time::{with_timeout, Duration};
     use shared::hans::frame::{write_slot, Frame, RING_BYTES};
-    use shared::xy2::{Health, StatusLevel};
+    use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
+    use shared::hans::tx::Transmitter;
+    use shared::model::Alarms;
+    use shared::model::FaultKind;
+    use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
+    use shared::xy2::{Health, LinkConfig, Mode, Parity, StatusError, StatusLevel, StatusWord};
+    use shared::xy3;
     use shared::xy3::back::{Event, Packet, Parser, Sender, SEND_BUF_LEN};
+    use shared::xy3::{Frame as Frame3, FrameSize};
+    use xy_bridge::board::HANS_FS_HZ;
     use xy_bridge::board::{self, Board};
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::backchannel::{self, Backchannel};
@@ -44,12 +56,14 @@ mod tests {
 
     bind_interrupts!(struct Irqs {
         DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+        DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
         DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
         DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
         DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
+        BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
         EXTI4 => SyncEdgeHandler;
         UART7 => usart::InterruptHandler<peripherals::UART7>;
     });
@@ -58,6 +72,7 @@ mod tests {
     const P1: u32 = 0;
     const P2: u32 = 1;
     const P3: u32 = 2;
+    const P4: u32 = 3;
     /// Every output low.
     const ALL_LOW: u32 = (1 << (P1 + 16)) | (1 << (P2 + 16)) | (1 << (P3 + 16));
     /// A timeout long enough for a few DMA halves.
@@ -95,7 +110,9 @@ mod tests {
         let mut out =
             WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
         let status_ring = dma_ring!(".sram2", u16, 8 * BITS);
-        out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring);
+        out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring)
+            .unwrap();
+        out.start();
 
         let mut prng = Prng(0x1234_5678);
         let mut x_bits = [false; BITS];
@@ -119,16 +136,89 @@ mod tests {
             assert_eq!(s >> 1 & 1 == 1, x_bits[i], "X at bit {}", i);
         }
 
-        // Status samples: two per bit, both with the bit's X level; find the start.
+        // Status samples, one per bit (the CLK-high tick), aligned to the first word
+        // written: kept sample i must carry bit i's X level, from the first one on.
+        embassy_time::Timer::after_micros(20).await;
         let mut samples = [0u16; 8 * BITS];
         let n = out.read_status(&mut samples).unwrap();
-        let x_of = |s: u16| s >> 1 & 1 == 1;
-        let found = (0..n.saturating_sub(2 * BITS)).any(|o| {
-            (0..BITS).all(|i| {
-                x_of(samples[o + 2 * i]) == x_bits[i] && x_of(samples[o + 2 * i + 1]) == x_bits[i]
-            })
+        assert!(n >= BITS, "{} status samples", n);
+        for (i, s) in samples[..BITS].iter().enumerate() {
+            assert_eq!(s >> 1 & 1 == 1, x_bits[i], "status sample {}", i);
+        }
+    }
+
+    /// XY2-100 STATUS word, head side. Jumper: PD3 -> PG9 (the head's STATUS input).
+    /// PD3 plays a head that shifts a status frame out on our clock, changing its
+    /// line on every CLK falling edge (PD0, no jumper needed); the TIM8 CC1 sampler's
+    /// aligned samples must give back every frame through `shared`'s
+    /// `StatusWordReceiver` at the firmware's geometry (20 samples per 40-tick frame,
+    /// offset 1), and the one frame sent with a flipped parity bit must be refused.
+    #[test]
+    async fn xy2_status_word_loopback(board: Board) {
+        const TPF: usize = 40;
+        const FRAMES: usize = 25;
+        const BATCHES: usize = 4;
+        const BAD: usize = 37;
+        let r = board.res;
+        let w = r.wave;
+        let _clk = Output::new(w.pins.p1, Level::Low, Speed::VeryHigh);
+        let _status = Output::new(w.pins.p4, Level::Low, Speed::VeryHigh);
+        let _status_in = Input::new(r.head_status, Pull::None);
+        let ring = dma_ring!(".sram2", u32, 2 * FRAMES * TPF);
+        let mut out =
+            WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
+        let status_ring = dma_ring!(".sram2", u16, 4 * FRAMES * TPF);
+        out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring)
+            .unwrap();
+        out.start();
+
+        let link = LinkConfig {
+            mode: Mode::Standard16,
+            parity: Parity::WholeFrame,
+        };
+        let geometry = StatusWordConfig {
+            pin: 9,
+            samples_per_period: (TPF / 2) as u16,
+            offset: 1,
+            link,
+        };
+        let mut rx = StatusWordReceiver::new(geometry).unwrap();
+        let word = |k: usize| StatusWord::from_alarms(Alarms((k as u32).wrapping_mul(7) & 0xF));
+        let frame = |k: usize| word(k).to_frame(&link) ^ u32::from(k == BAD);
+        let mut got: heapless::Vec<Result<StatusWord, StatusError>, 160> = heapless::Vec::new();
+        let mut batch = [0u32; FRAMES * TPF];
+        let mut samples = [0u16; 4 * FRAMES * TPF];
+        // One batch more than the frames: its idle slots (no clock, STATUS held) let
+        // the last frame's last bit be sampled.
+        for b in 0..=BATCHES {
+            for (f, slot) in batch.chunks_exact_mut(TPF).enumerate() {
+                let k = b * FRAMES + f;
+                let bits = (k < BATCHES * FRAMES).then(|| frame(k));
+                for (i, pair) in slot.chunks_exact_mut(2).enumerate() {
+                    pair[0] = level(P1, bits.is_some());
+                    let status = bits.map_or(0, |v| level(P4, v >> (19 - i) & 1 == 1));
+                    pair[1] = level(P1, false) | status;
+                }
+            }
+            out.write_half(&batch).await.unwrap();
+            let n = out.read_status(&mut samples).unwrap();
+            rx.feed(&samples[..n], &mut |r| {
+                let _ = got.push(r);
+            });
+        }
+        embassy_time::Timer::after_micros(300).await;
+        let n = out.read_status(&mut samples).unwrap();
+        rx.feed(&samples[..n], &mut |r| {
+            let _ = got.push(r);
         });
-        assert!(found, "X pattern not in {} status samples", n);
+        assert!(got.len() >= BATCHES * FRAMES, "{} words", got.len());
+        for (k, r) in got[..BATCHES * FRAMES].iter().enumerate() {
+            if k == BAD {
+                assert!(r.is_err(), "frame {} with a flipped bit passed", k);
+            } else {
+                assert_eq!(*r, Ok(word(k)), "frame {}", k);
+            }
+        }
     }
 
     /// XY3-100 out -> XY3-100 in. Jumpers: PD0 (SYNC) -> PA15 and PA4, PD1 (CLK) ->
@@ -147,11 +237,13 @@ mod tests {
         let x = r.xy3_in;
         let mut marks = SyncMarks::new(x.sync, x.exti, Irqs, (2 * BYTES) as u16);
         let rx_ring = dma_ring!(".sram1", u8, 2 * BYTES);
+        let l = x.x;
         let mut rx =
-            SpiSlaveRx::new(x.spi, x.sck, x.mosi, Some(x.nss), x.dma, Irqs, rx_ring).unwrap();
+            SpiSlaveRx::new(l.spi, l.sck, l.mosi, Some(l.nss), l.dma, Irqs, rx_ring).unwrap();
         let idle = level(P1, true) | level(P2, false) | level(P3, false);
         let ring = dma_ring!(".sram2", u32, 4 * FRAMES * SLOTS);
         let mut out = WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, idle, 4_800_000).unwrap();
+        out.start();
 
         let word = |k: usize| ((k as u32).wrapping_mul(0x0102_0305) ^ 0x00A5_5AC3) & 0xFF_FFFF;
         let mut half = [0u32; 2 * FRAMES * SLOTS];
@@ -190,6 +282,138 @@ mod tests {
         }
     }
 
+    /// XY3-100 out -> XY3-100 in, end to end through `shared`'s transmitter and
+    /// receiver, as the firmware runs them. Jumpers: PD0 (SYNC) -> PA15, PE11 and PA4;
+    /// PD1 (CLK) -> PC10 and PE12; PD2 (X) -> PC12; PD3 (Y) -> PE14. 120 periods of
+    /// 24-bit X and Y position frames at 100 kHz (`xy3::tx`, 50 ticks at 5 MHz) are
+    /// received by SPI3 (X) and SPI4 (Y) with the EXTI frame-end marks and decoded by
+    /// `xy3::rx::Receiver`, fed in 60-byte chunks with the marks due so far: every
+    /// period must give back both frames in order, except period 45, whose Y bit 10
+    /// is flipped on the wire: Y must fail its check there (X still decodes), and the
+    /// period must not count as good.
+    #[test]
+    async fn xy3_receiver_loopback(board: Board) {
+        const FRAMES: usize = 120;
+        const TPF: usize = 50;
+        const BYTES: usize = 3 * FRAMES;
+        const CHUNK: usize = 60;
+        const BAD: usize = 45;
+        let r = board.res;
+        let w = r.wave;
+        let _sync = Output::new(w.pins.p1, Level::High, Speed::VeryHigh);
+        let _clk = Output::new(w.pins.p2, Level::Low, Speed::VeryHigh);
+        let _x = Output::new(w.pins.p3, Level::Low, Speed::VeryHigh);
+        let _y = Output::new(w.pins.p4, Level::Low, Speed::VeryHigh);
+        let tx = xy3::tx::Transmitter::new(&xy3::tx::TxConfig {
+            pins: xy3::tx::OutPinMap {
+                clk: P2 as u8,
+                sync: P1 as u8,
+                data: [Some(P3 as u8), Some(P4 as u8), None, None, None],
+            },
+            size: FrameSize::Bits24,
+            idle_ticks: xy3::tx::MIN_IDLE_TICKS,
+        })
+        .unwrap();
+        assert_eq!(tx.ticks_per_frame(), TPF);
+
+        let i = r.xy3_in;
+        let (lx, ly) = (i.x, i.y);
+        // Both rings hold the whole transfer: nothing is read until it is all in.
+        let x_ring = dma_ring!(".sram1", u8, 512);
+        let y_ring = dma_ring!(".sram1", u8, 512);
+        let mut rx_x =
+            SpiSlaveRx::new(lx.spi, lx.sck, lx.mosi, Some(lx.nss), lx.dma, Irqs, x_ring).unwrap();
+        let mut rx_y =
+            SpiSlaveRx::new(ly.spi, ly.sck, ly.mosi, Some(ly.nss), ly.dma, Irqs, y_ring).unwrap();
+        let mut marks = SyncMarks::new(i.sync, i.exti, Irqs, 512);
+
+        // The output ring holds every frame plus idle, so no write can come late.
+        let mut idle = [0u32; TPF];
+        tx.idle(&mut idle).unwrap();
+        // One lap of idle plays before the first written word: 7000 words fit.
+        let ring = dma_ring!(".sram1", u32, (FRAMES + 40) * TPF);
+        let mut out =
+            WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, idle[0], 5_000_000).unwrap();
+        out.start();
+
+        let x_of =
+            |k: usize| Frame3::Position24(((k as u32).wrapping_mul(0x1357) ^ 0x4_0000) & 0xF_FFFF);
+        let y_of =
+            |k: usize| Frame3::Position24(((k as u32).wrapping_mul(0x2468) ^ 0x9ABC) & 0xF_FFFF);
+        let mut batch = [0u32; 20 * TPF];
+        // Six batches of 20 frames, then one idle batch.
+        for b in 0..=FRAMES / 20 {
+            for (f, slot) in batch.chunks_exact_mut(TPF).enumerate() {
+                let k = b * 20 + f;
+                if k >= FRAMES {
+                    tx.idle(slot).unwrap();
+                    continue;
+                }
+                tx.encode(&[Some(x_of(k)), Some(y_of(k)), None, None, None], slot)
+                    .unwrap();
+                if k == BAD {
+                    // Word 2b + 1 sets bit b's level; swap Y's set and reset there.
+                    let word = &mut slot[2 * 10 + 1];
+                    let ybits = (1 << P4) | (1 << (P4 + 16));
+                    assert!(*word & ybits != 0 && *word & ybits != ybits);
+                    *word ^= ybits;
+                }
+            }
+            out.write_half(&batch).await.unwrap();
+        }
+        let (mut bx, mut by) = ([0u8; BYTES], [0u8; BYTES]);
+        with_timeout(WAIT, rx_x.read_exact(&mut bx))
+            .await
+            .unwrap()
+            .unwrap();
+        with_timeout(WAIT, rx_y.read_exact(&mut by))
+            .await
+            .unwrap()
+            .unwrap();
+        embassy_time::Timer::after_micros(50).await;
+        let mut ends = [0u32; FRAMES + 1];
+        let n = marks.drain(&mut ends);
+        assert_eq!(n, FRAMES, "marks");
+
+        let mut receiver = xy3::rx::Receiver::new(xy3::rx::Lines::XY);
+        let mut periods: heapless::Vec<xy3::rx::Period, { FRAMES + 8 }> = heapless::Vec::new();
+        let (mut next_end, mut pushed) = (0, 0);
+        for (cx, cy) in bx.chunks(CHUNK).zip(by.chunks(CHUNK)) {
+            receiver.push_bytes(&[cx, cy]).unwrap();
+            pushed += cx.len();
+            // The ends whose bytes are in (at most 20 wait at a time).
+            let due = ends[next_end..n]
+                .iter()
+                .take_while(|&&e| e as usize <= pushed)
+                .count();
+            receiver.push_ends(&ends[next_end..next_end + due]);
+            next_end += due;
+            while let Some(p) = receiver.poll() {
+                periods.push(p).unwrap();
+            }
+        }
+        receiver.push_ends(&ends[next_end..n]);
+        while let Some(p) = receiver.poll() {
+            periods.push(p).unwrap();
+        }
+        assert_eq!(periods.len(), FRAMES, "periods");
+        for (k, p) in periods.iter().enumerate() {
+            assert_eq!(p.end as usize, 3 * (k + 1), "end of period {}", k);
+            assert_eq!(p.lines[0], Some(Ok(x_of(k))), "X in period {}", k);
+            if k == BAD {
+                assert!(
+                    matches!(p.lines[1], Some(Err(xy3::rx::RxError::Check(_)))),
+                    "Y in period {}: {:?}",
+                    k,
+                    p.lines[1]
+                );
+                assert!(!p.all_ok());
+            } else {
+                assert_eq!(p.lines[1], Some(Ok(y_of(k))), "Y in period {}", k);
+            }
+        }
+    }
+
     /// HANS-100 out -> an SPI slave clocked by the SAI's own bit clock. Jumpers: PE6
     /// (SAI1_SD_A) -> PC12, PE5 (SAI1_SCK_A, test only) -> PC10. The 1000-bit ring of
     /// 8 frames must come back bit for bit (from whatever bit the SPI started on).
@@ -211,7 +435,8 @@ mod tests {
         const LEN: usize = 2 * RING_BYTES;
         let rx_ring = dma_ring!(".sram1", u8, 2 * LEN);
         let no_nss: Option<Peri<'static, PA15>> = None;
-        let mut rx = SpiSlaveRx::new(x.spi, x.sck, x.mosi, no_nss, x.dma, Irqs, rx_ring).unwrap();
+        let l = x.x;
+        let mut rx = SpiSlaveRx::new(l.spi, l.sck, l.mosi, no_nss, l.dma, Irqs, rx_ring).unwrap();
         let ring = dma_ring!(".sram2", u8, RING_BYTES);
         ring.copy_from_slice(&expected);
         let h = r.hans_out;
@@ -229,6 +454,147 @@ mod tests {
             .any(|r| (0..8 * LEN).all(|j| bit(&got, j) == bit(&expected, (r + j) % ring_bits)));
         assert!(found, "ring pattern not received");
         assert!(tx.sending_slot() < 8);
+    }
+
+    /// Captures `words.len()` SPI6 words (40 MHz fs from TIM3 CH2) and decodes them
+    /// with `shared`'s HANS-100 receiver as `status::hans_status` does (channel 1);
+    /// returns the frames and the number of frames that failed a check.
+    fn hans_decode(words: &[u16], frames: &mut heapless::Vec<Frame, 48>) -> usize {
+        let mut rx = HansRx::new(HANS_FS_HZ, HansMode::Normal { channel: 1 }).unwrap();
+        let mut bad = 0;
+        rx.push(&[words], &mut |ev| match ev {
+            RxEvent::Frame(f) => frames.push(f).unwrap(),
+            RxEvent::Fault {
+                kind: FaultKind::CheckFailed,
+                ..
+            } => bad += 1,
+            RxEvent::Fault { .. } => {}
+        });
+        bad
+    }
+
+    /// Starts TIM3 CH2 at the firmware's HANS fs on PC7; runs while the result lives.
+    fn hans_fs(
+        tim: Peri<'static, peripherals::TIM3>,
+        pin: Peri<'static, peripherals::PC7>,
+    ) -> SimplePwm<'static, peripherals::TIM3> {
+        let mut pwm = SimplePwm::new(
+            tim,
+            None,
+            Some(PwmPin::new(pin, OutputType::PushPull)),
+            None,
+            None,
+            Hertz(HANS_FS_HZ),
+            CountingMode::EdgeAlignedUp,
+        );
+        {
+            let mut fs = pwm.ch2();
+            fs.set_duty_cycle_fraction(1, 2);
+            fs.enable();
+        }
+        pwm
+    }
+
+    /// HANS-100 out -> HANS STATUS in, the head-side status path end to end. Jumpers:
+    /// PE6 (SAI1_SD_A) -> PG14 (SPI6 MOSI), PC7 (TIM3 CH2, fs) -> PB3 (SPI6 SCK). The
+    /// SAI replays 8 frames, slot 5 with one bit flipped; SPI6 oversamples 1024 words
+    /// (16 384 samples, 41 frame periods) into the BDMA ring in SRAM4 and the HANS-100
+    /// receiver must give back at least 28 frames, each the ring's next frame in
+    /// order, never slot 5, whose copies must fail their check instead.
+    #[test]
+    async fn hans_status_in_loopback(board: Board) {
+        const BAD: usize = 5;
+        let r = board.res;
+        let mut ring_bytes = [0u8; RING_BYTES];
+        let frame_of = |slot: u32| Frame::new(slot * 0x1_2345, 0xF_FFFF - slot, 0x3_C3C3 ^ slot);
+        for slot in 0..8u32 {
+            write_slot(&mut ring_bytes, slot as usize, &frame_of(slot).unwrap()).unwrap();
+        }
+        // One bit in the middle of slot 5 (inside a complement pair).
+        let flip = BAD * 125 + 60;
+        ring_bytes[flip / 8] ^= 0x80 >> (flip % 8);
+
+        let s = r.hans_status_in;
+        let _fs = hans_fs(s.fs_tim, s.fs_pin);
+        let rx_ring = dma_ring!(".sram4", u16, 2048);
+        let no_nss: Option<Peri<'static, PG8>> = None;
+        let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();
+        let ring = dma_ring!(".sram2", u8, RING_BYTES);
+        ring.copy_from_slice(&ring_bytes);
+        let h = r.hans_out;
+        let mut channel = None;
+        let _tx = SerialTx::new(h.sai, h.sd, h.dma, Irqs, &mut channel, ring);
+
+        let mut words = [0u16; 1024];
+        with_timeout(WAIT, rx.read_exact(&mut words))
+            .await
+            .unwrap()
+            .unwrap();
+        let mut frames = heapless::Vec::new();
+        let bad = hans_decode(&words, &mut frames);
+        assert!(frames.len() >= 28, "{} frames", frames.len());
+        assert!(bad >= 2, "{} check failures", bad);
+        let slot_of = |f: &Frame| (0..8u32).find(|&s| frame_of(s).unwrap() == *f);
+        let mut last = slot_of(&frames[0]).expect("frame not from the ring");
+        for f in &frames[1..] {
+            let slot = slot_of(f).expect("frame not from the ring");
+            assert_ne!(slot as usize, BAD, "corrupted frame delivered");
+            let step = if (last as usize + 1) % 8 == BAD { 2 } else { 1 };
+            assert_eq!(slot, (last + step) % 8, "after slot {}", last);
+            last = slot;
+        }
+    }
+
+    /// The HANS-100 head output as the bridge loop drives it: the ring starts as zeros
+    /// (no frame on the line), then `shared::hans::tx::Transmitter::update` puts frame
+    /// k = 1, 2, ... two slots ahead of the DMA about every slot period, for longer
+    /// than SPI6 captures (2048 words, 819 us). Jumpers as `hans_status_in_loopback`.
+    /// Every decoded frame must be one of those written, in non-decreasing k (the
+    /// line never replays an older one), with at least 10 distinct k.
+    #[test]
+    async fn hans_paced_update_loopback(board: Board) {
+        const MAX_K: u32 = 1000;
+        let r = board.res;
+        let frame_of = |k: u32| Frame::new((k * 0x1111) & 0xF_FFFF, 0x8_0000 + k, k).unwrap();
+        let s = r.hans_status_in;
+        let _fs = hans_fs(s.fs_tim, s.fs_pin);
+        let rx_ring = dma_ring!(".sram4", u16, 4096);
+        let no_nss: Option<Peri<'static, PG8>> = None;
+        let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();
+        let ring = dma_ring!(".sram2", u8, RING_BYTES);
+        let h = r.hans_out;
+        let mut channel = None;
+        let mut out = SerialTx::new(h.sai, h.sd, h.dma, Irqs, &mut channel, ring);
+
+        let mut words = [0u16; 2048];
+        let updates = async {
+            let mut tx = Transmitter::new();
+            let end = embassy_time::Instant::now() + Duration::from_micros(1500);
+            let mut k = 1;
+            while embassy_time::Instant::now() < end && k < MAX_K {
+                let remaining = out.remaining();
+                out.update(|buf| tx.update(buf, remaining, &frame_of(k)))
+                    .unwrap();
+                k += 1;
+                embassy_time::Timer::after_micros(10).await;
+            }
+        };
+        let capture = with_timeout(WAIT, rx.read_exact(&mut words));
+        let (_, captured) = embassy_futures::join::join(updates, capture).await;
+        captured.unwrap().unwrap();
+
+        let mut frames = heapless::Vec::new();
+        hans_decode(&words, &mut frames);
+        let k_of = |f: &Frame| (1..MAX_K).find(|&k| frame_of(k) == *f);
+        let mut last = 0;
+        let mut distinct = 0;
+        for f in &frames {
+            let k = k_of(f).expect("frame not written by the test");
+            assert!(k >= last, "frame {} after {}", k, last);
+            distinct += usize::from(k != last);
+            last = k;
+        }
+        assert!(distinct >= 10, "{} distinct frames", distinct);
     }
 
     /// Backchannel: UART7 TX -> RX. Jumper: PE8 -> PA8. Packets sent with `shared`'s

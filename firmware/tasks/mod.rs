@@ -1,10 +1,16 @@
-//! Tasks. Thread mode (this file and [`status`]): the supervisor (watchdog, laser
-//! gate, health), the status LEDs, the once-a-second statistics and the status
-//! paths. High priority ([`line`], run by the `InterruptExecutor` in `main.rs`): the
-//! per-DMA-half receive -> bridge -> transmit loop. Thread-mode tasks may be slow
+//! Tasks. Thread mode (this file, [`stats`] and [`status`]): the supervisor
+//! (watchdog, laser gate, health), the status LEDs, the once-a-second statistics and
+//! the status paths. High priority ([`line`], [`bridge`], run by the `InterruptExecutor` in
+//! `main.rs`): the per-DMA-half receive -> bridge -> transmit loop. Thread-mode tasks may be slow
 //! without affecting the line timing.
 
+pub mod bridge;
+mod bridge_core;
+pub mod bridge_hans;
+mod encode;
+mod head_word;
 pub mod line;
+pub mod stats;
 pub mod status;
 
 use embassy_stm32::gpio::Output;
@@ -15,16 +21,15 @@ use embassy_time::{Duration, Ticker};
 
 use core::sync::atomic::Ordering;
 
-use crate::channels::{
-    set_laser_gate, Health, Stats, BRIDGE_BEAT, HEAD_STATUS, HEALTH, LASER_GATE, LINK_RUNNING,
-    STATS,
-};
+use crate::channels::{set_laser_gate, Health, BRIDGE_BEAT, HEALTH, LASER_GATE, LINK_RUNNING};
 use crate::drivers::sync_marks::SyncEdgeHandler;
 
 bind_interrupts!(
     /// Every interrupt a protocol driver uses (README.md (section "Firmware") allocation table).
     pub struct Irqs {
         DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
+        DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
+        DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
@@ -111,34 +116,6 @@ pub async fn leds(
             red.set_level(h.fault.into());
         }
         ticker.next().await;
-    }
-}
-
-/// Once a second: a defmt summary of what the line tasks counted, and the head's
-/// alarms.
-#[embassy_executor::task]
-pub async fn stats() {
-    let mut head = HEAD_STATUS.anon_receiver();
-    let mut ticker = Ticker::every(Duration::from_secs(1));
-    loop {
-        ticker.next().await;
-        let alarms = head.try_get().map(|s| s.alarms.0).unwrap_or(0);
-        let s = &STATS;
-        defmt::info!(
-            "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames, {} halves ({} underruns), \
-             back {} packets ({} resyncs, {} errors), status changes {}, alarms {=u32:#x}",
-            Stats::take(&s.input_halves),
-            Stats::take(&s.input_overruns),
-            Stats::take(&s.sync_marks),
-            Stats::take(&s.output_frames),
-            Stats::take(&s.output_halves),
-            Stats::take(&s.output_underruns),
-            Stats::take(&s.back_packets),
-            Stats::take(&s.back_resyncs),
-            Stats::take(&s.back_errors),
-            Stats::take(&s.status_changes),
-            alarms,
-        );
     }
 }
 

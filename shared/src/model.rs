@@ -16,6 +16,8 @@
 //! average), and plain rounding would wrap the top codes to 0, i.e. throw the mirror
 //! from one end of the field to the other.
 
+use core::num::NonZeroU32;
+
 use heapless::Vec;
 
 /// One of the five axes a scan head can have (XY3-100 names all five; XY2-100 and
@@ -73,18 +75,30 @@ impl core::fmt::Display for PositionError {
 
 /// A mirror position on one axis, offset binary, kept MSB-aligned in 32 bits together
 /// with the width it was received at (see the module docs for the scaling rules).
+///
+/// The width is kept as a `NonZeroU32` (it is always 1..=32): `Option<Position>` is
+/// then no larger than `Position` and both are two plain words without padding, so
+/// the frames the bridge moves every output slot copy word by word.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Position {
     aligned: u32,
-    bits: u8,
+    bits: NonZeroU32,
+}
+
+/// `bits` clamped into 1..=32.
+const fn width(bits: u8) -> NonZeroU32 {
+    match NonZeroU32::new(if bits > 32 { 32 } else { bits as u32 }) {
+        Some(b) => b,
+        None => NonZeroU32::MIN,
+    }
 }
 
 impl Position {
     /// The centre of the field at any width.
     pub const CENTRE: Position = Position {
         aligned: 0x8000_0000,
-        bits: 1,
+        bits: NonZeroU32::MIN,
     };
 
     /// A position from a raw `bits`-wide offset-binary value.
@@ -101,13 +115,24 @@ impl Position {
             } else {
                 value << (32 - bits)
             },
-            bits,
+            bits: width(bits),
         })
+    }
+
+    /// A position of this width with MSB-aligned value `aligned`, whose bits below
+    /// the width must be zero (for the bridge's per-axis mapping, which works in the
+    /// aligned form and keeps that true).
+    pub(crate) const fn with_aligned(self, aligned: u32) -> Position {
+        Position {
+            aligned,
+            bits: self.bits,
+        }
     }
 
     /// The width the value arrived with.
     pub const fn bits(self) -> u8 {
-        self.bits
+        // At most 32.
+        self.bits.get() as u8
     }
 
     /// The value MSB-aligned in 32 bits (full scale = `0xFFFF_FFFF` region).
@@ -119,39 +144,36 @@ impl Position {
     /// rounded to nearest (ties upward) and saturated at full scale when narrowing.
     /// Widths outside 1..=32 are clamped into that range.
     pub const fn to_raw(self, bits: u8) -> u32 {
-        let bits = if bits == 0 {
-            1
-        } else if bits > 32 {
-            32
-        } else {
-            bits
-        };
+        let bits = width(bits).get();
         if bits == 32 {
             return self.aligned;
         }
-        let shift = 32 - bits as u32;
-        let truncated = self.aligned >> shift;
-        let round_up = (self.aligned >> (shift - 1)) & 1;
-        let max = (1u32 << bits) - 1;
-        if truncated == max {
-            max
+        Self::round(self.aligned, bits) >> (32 - bits)
+    }
+
+    /// `aligned` rounded to `bits` (1..=31) MSB-aligned bits, ties upward, saturated
+    /// at full scale. Widening is exact too: the bits below an arrived width are zero,
+    /// so adding half an LSB of the wider width and masking changes nothing.
+    const fn round(aligned: u32, bits: u32) -> u32 {
+        let mask = u32::MAX << (32 - bits);
+        if aligned & mask == mask {
+            // Full scale: rounding up would wrap to 0 (the other end of the field).
+            mask
         } else {
-            truncated + round_up
+            // No overflow: aligned < mask here and half < one LSB of `bits`.
+            aligned.wrapping_add(1 << (31 - bits)) & mask
         }
     }
 
     /// Re-expresses the position at `bits` width (see [`Position::to_raw`]).
     pub const fn resized(self, bits: u8) -> Position {
-        let raw = self.to_raw(bits);
-        let bits = if bits == 0 {
-            1
-        } else if bits > 32 {
-            32
-        } else {
-            bits
-        };
+        let bits = width(bits);
         Position {
-            aligned: if bits == 32 { raw } else { raw << (32 - bits) },
+            aligned: if bits.get() == 32 {
+                self.aligned
+            } else {
+                Self::round(self.aligned, bits.get())
+            },
             bits,
         }
     }
@@ -159,18 +181,10 @@ impl Position {
     /// The mirror image about the centre (used by the bridge's axis inversion):
     /// `2^n - 1 - v` at the position's own width, so 0 and full scale swap exactly.
     pub const fn inverted(self) -> Position {
-        let max = if self.bits == 32 {
-            u32::MAX
-        } else {
-            (1u32 << self.bits) - 1
-        };
-        let raw = max - (self.aligned >> (32 - self.bits as u32));
+        // In the MSB-aligned form that is the complement of the top `n` bits.
+        let mask = u32::MAX << (32 - self.bits.get());
         Position {
-            aligned: if self.bits == 32 {
-                raw
-            } else {
-                raw << (32 - self.bits)
-            },
+            aligned: !self.aligned & mask,
             bits: self.bits,
         }
     }
@@ -547,6 +561,28 @@ mod tests {
             let v = if bits == 32 { v } else { v & ((1 << bits) - 1) };
             let p = Position::from_raw(v, bits).unwrap();
             prop_assert_eq!(p.inverted().inverted(), p);
+        }
+
+        /// The word-level `to_raw` / `resized` / `inverted` agree with the textbook
+        /// arithmetic on the raw value (widths 0 and above 32 included: clamped).
+        #[test]
+        fn word_ops_match_the_raw_value_model(v in any::<u32>(), from in 1u8..=32, to in 0u8..=40) {
+            let v = if from == 32 { v } else { v & ((1 << from) - 1) };
+            let p = Position::from_raw(v, from).unwrap();
+            let to_c = to.clamp(1, 32);
+            let want = if to_c >= from {
+                u64::from(v) << (to_c - from)
+            } else {
+                let shift = from - to_c;
+                let max = (1u64 << to_c) - 1;
+                ((u64::from(v) + (1 << (shift - 1))) >> shift).min(max)
+            };
+            prop_assert_eq!(u64::from(p.to_raw(to)), want);
+            let r = p.resized(to);
+            prop_assert_eq!((r.bits(), u64::from(r.to_raw(to_c))), (to_c, want));
+            let max = (1u64 << from) - 1;
+            prop_assert_eq!(u64::from(p.inverted().to_raw(from)), max - u64::from(v));
+            prop_assert_eq!(p.inverted().bits(), from);
         }
     }
 }

@@ -1,7 +1,9 @@
 //! The bench's result: pairs the guest's `BENCH <name> <frames>` lines (stdout) with
 //! the plugin's `insn_count: window <n> <count>` lines (stderr) in order, subtracts
 //! the empty first window (the cost of the window itself) and prints instructions per
-//! 10 us frame. Fails if the worst workload exceeds [`BUDGET`].
+//! 10 us frame. The budget applies to the worst-path workload ([`WORST_PATH`]), which
+//! the table marks; every other workload must fit it too. Fails if a workload that is
+//! not a listed exception exceeds [`BUDGET`], or if the worst path is missing.
 
 use crate::Result;
 
@@ -10,16 +12,29 @@ use crate::Result;
 /// rest for interrupts, DMA bookkeeping and the other direction.
 pub const BUDGET: f64 = 1200.0;
 
+/// Name prefix of the workload that chains the whole worst path of issue 4 (HANS-100
+/// super decode of 5 channels at 3x, bridge, XY3-100 32-bit and XY2-100 encoders):
+/// the figure the budget is about.
+pub const WORST_PATH: &str = "worst path";
+
 /// Workloads (by name prefix) known to exceed the budget, with the open work that
 /// fixes them. They are measured and printed with a loud mark on every run, but do not
 /// fail it: the figure is the evidence the open issue tracks. Remove an entry as soon
 /// as its workload fits; a workload over budget that is not listed here fails the run.
-pub const KNOWN_OVER_BUDGET: &[(&str, &str)] = &[(
-    "hans ",
-    "issue 4 open: the HANS-100 receiver (shared clock, table-driven gathering, \
-     centre compares) still spends about 1000 instructions gathering the reference \
-     channel, 3 per word copying the DMA rings and ~400 per extra channel",
-)];
+pub const KNOWN_OVER_BUDGET: &[(&str, &str)] = &[
+    (
+        "hans ",
+        "issue 4 open: the HANS-100 receiver (shared clock, table-driven gathering, \
+         centre compares) still spends about 1000 instructions gathering the reference \
+         channel, 3 per word copying the DMA rings and ~400 per extra channel",
+    ),
+    (
+        WORST_PATH,
+        "issue 4 open: THE WORST PATH IS OVER BUDGET. Nearly all of it is the HANS-100 \
+         super-mode receiver (the `hans rx: super` row); bridge and both encoders take \
+         the rest",
+    ),
+];
 
 /// The open-work note of a workload allowed over budget, if it is one.
 fn known_over_budget(name: &str) -> Option<&'static str> {
@@ -90,30 +105,36 @@ pub fn report(stdout: &str, stderr: &str) -> Result {
 
     println!("\ninstructions per 10 us frame (QEMU mps2-an500 Cortex-M7, window cost {overhead} subtracted):");
     println!(
-        "  {:<48} {:>6} {:>8} {:>10}",
+        "  {:<56} {:>6} {:>8} {:>10}",
         "workload", "frames", "insns", "per frame"
     );
-    let mut worst: Option<(&str, f64)> = None;
+    let mut failed: Option<(&str, f64)> = None;
+    let mut worst_path: Option<(&str, f64, bool)> = None;
     let mut open = Vec::new();
     for w in windows.iter().skip(1) {
         let net = w.count.saturating_sub(overhead);
         let per_frame = net as f64 / f64::from(w.frames.max(1));
-        let known = known_over_budget(w.name).filter(|_| per_frame > BUDGET);
+        let over = per_frame > BUDGET;
+        let known = known_over_budget(w.name).filter(|_| over);
+        let is_worst = w.name.starts_with(WORST_PATH);
+        let mark = match (is_worst, known.is_some()) {
+            (true, true) => "  <== WORST PATH (budget): OVER BUDGET (open)",
+            (true, false) => "  <== WORST PATH (budget)",
+            (false, true) => "  OVER BUDGET (open)",
+            (false, false) => "",
+        };
         println!(
-            "  {:<48} {:>6} {:>8} {:>10.1}{}",
-            w.name,
-            w.frames,
-            net,
-            per_frame,
-            if known.is_some() {
-                "  OVER BUDGET (open)"
-            } else {
-                ""
-            }
+            "  {:<56} {:>6} {:>8} {:>10.1}{mark}",
+            w.name, w.frames, net, per_frame
         );
+        if is_worst {
+            worst_path = Some((w.name, per_frame, known.is_some()));
+        }
         match known {
             Some(why) => open.push(why),
-            None if worst.is_none_or(|(_, p)| per_frame > p) => worst = Some((w.name, per_frame)),
+            None if over && failed.is_none_or(|(_, p)| per_frame > p) => {
+                failed = Some((w.name, per_frame))
+            }
             None => {}
         }
     }
@@ -121,11 +142,20 @@ pub fn report(stdout: &str, stderr: &str) -> Result {
     for why in open {
         println!("  OVER BUDGET, not failing the run: {why}");
     }
-    let Some((name, per_frame)) = worst else {
-        return Err("the bench measured no workload".into());
+    let Some((name, per_frame, known)) = worst_path else {
+        return Err(format!(
+            "the bench has no worst-path workload (name starting with `{WORST_PATH}`)"
+        ));
     };
-    println!("worst path: {name}: {per_frame:.1} instructions per frame (budget {BUDGET:.0})");
-    if per_frame > BUDGET {
+    println!(
+        "budget figure ({name}): {per_frame:.1} instructions per frame (budget {BUDGET:.0}){}",
+        if known {
+            " -- OVER BUDGET, OPEN (see above)"
+        } else {
+            ""
+        }
+    );
+    if let Some((name, per_frame)) = failed {
         return Err(format!(
             "`{name}` needs {per_frame:.1} instructions per frame, over the {BUDGET:.0} budget"
         ));
@@ -137,38 +167,53 @@ pub fn report(stdout: &str, stderr: &str) -> Result {
 mod tests {
     use super::report;
 
-    const OUT: &str = "BENCH (call overhead) 0\nBENCH a 10\nBENCH b 4\nBENCH done\n";
+    const OUT: &str =
+        "BENCH (call overhead) 0\nBENCH a 10\nBENCH b 4\nBENCH worst path: w 2\nBENCH done\n";
+    /// Window costs: calibration 16, then a = 10 per frame, w = 1000 per frame.
+    fn counts(b: u64) -> String {
+        format!(
+            "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 {b}\n\
+             insn_count: window 3 2016\n"
+        )
+    }
 
     #[test]
     fn within_budget_passes() {
-        let err = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 4816\n";
-        assert_eq!(report(OUT, err), Ok(()));
+        assert_eq!(report(OUT, &counts(4816)), Ok(()));
     }
 
     #[test]
     fn over_budget_fails_naming_the_workload() {
         // b: (4817 - 16) / 4 = 1200.25 per frame.
-        let err = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 4817\n";
-        let e = report(OUT, err).unwrap_err();
+        let e = report(OUT, &counts(4817)).unwrap_err();
         assert!(e.contains("`b`") && e.contains("1200.2"), "{e}");
     }
 
     #[test]
     fn known_over_budget_workloads_are_reported_not_failed() {
-        let out = "BENCH (call overhead) 0\nBENCH a 10\nBENCH hans rx 1\nBENCH done\n";
-        let err = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 90016\n";
-        assert_eq!(report(out, err), Ok(()));
+        let out = OUT.replace("BENCH b 4", "BENCH hans rx 4");
+        assert_eq!(report(&out, &counts(90016)), Ok(()));
         // A workload that is not listed still fails.
-        let out = out.replace("hans rx", "xy2 rx");
-        assert!(report(&out, err).is_err());
+        let out = OUT.replace("BENCH b 4", "BENCH xy2 rx 4");
+        assert!(report(&out, &counts(90016)).is_err());
+    }
+
+    #[test]
+    fn worst_path_is_required_and_listed_while_over_budget() {
+        let without = OUT.replace("BENCH worst path: w 2\n", "");
+        let err = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 20\n";
+        let e = report(&without, err).unwrap_err();
+        assert!(e.contains("worst-path"), "{e}");
+        // Over budget: listed as open work, so it is reported without failing.
+        let over = counts(20).replace("window 3 2016", "window 3 40016");
+        assert_eq!(report(OUT, &over), Ok(()));
     }
 
     #[test]
     fn missing_count_or_unfinished_run_fails() {
-        let err = "insn_count: window 0 16\ninsn_count: window 1 116\n";
+        let err = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 20\n";
         assert!(report(OUT, err).is_err());
-        let full = "insn_count: window 0 16\ninsn_count: window 1 116\ninsn_count: window 2 20\n";
-        assert!(report(&OUT.replace("BENCH done\n", ""), full).is_err());
+        assert!(report(&OUT.replace("BENCH done\n", ""), &counts(20)).is_err());
     }
 
     #[test]

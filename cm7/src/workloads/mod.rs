@@ -7,6 +7,7 @@
 pub mod bridge;
 pub mod hans;
 pub mod model;
+pub mod worst;
 pub mod xy2;
 pub mod xy3;
 
@@ -54,4 +55,5 @@ pub const GROUPS: &[&[Workload]] = &[
     xy3::WORKLOADS,
     hans::WORKLOADS,
     bridge::WORKLOADS,
+    worst::WORKLOADS,
 ];

@@ -5,7 +5,7 @@ use super::config::{AfterHold, Config, GateSource, Protocol, Timing};
 use super::counters::{bump, Counters};
 use super::status::StatusState;
 use super::supervision::{Changes, LinkState, Supervisor};
-use super::translate::{config_position, Translator};
+use super::translate::{config_position, Translated, Translator};
 use super::validate::ConfigError;
 use crate::model::{Alarms, Axis, Command, ForwardFrame, LaserControl, Line, LineEvent, Position};
 use crate::xy3::{self, BackRate};
@@ -181,11 +181,14 @@ impl Bridge {
             }
             LineEvent::Frame(f) => self.on_frame(now_ns, &f),
         }
-        .map(|frame| self.output(Some(frame)))
     }
 
-    /// A valid controller frame; returns the frame to send now (slaved mode only).
-    fn on_frame(&mut self, now_ns: u64, f: &ForwardFrame) -> Option<ForwardFrame> {
+    /// A valid controller frame; returns the output for it (slaved mode only).
+    ///
+    /// The frame is translated straight into the pending slot (free-running) or the
+    /// returned output (slaved): a frame is some 50 bytes and every move of it costs
+    /// tens of instructions per frame on the MCU.
+    fn on_frame(&mut self, now_ns: u64, f: &ForwardFrame) -> Option<Output> {
         bump(&mut self.counters.frames_ok);
         let was_running = self.sup.state() == LinkState::Running;
         if !self.sup.valid(now_ns) {
@@ -201,50 +204,67 @@ impl Bridge {
         if !was_running {
             bump(&mut self.counters.recoveries);
         }
-        let t = self.tr.translate(f);
+        if let Some(LaserControl::Power { power, mo, pa, .. }) = f.laser {
+            self.power = Some(power);
+            self.mo_pa = mo && pa;
+        }
+        match self.config.output.timing {
+            Timing::Slaved => {
+                let mut frame = ForwardFrame::default();
+                let t = self.tr.translate(f, &mut frame);
+                self.count_translation(&t);
+                let head_back_rate = finish_frame(
+                    &mut frame,
+                    &mut self.held,
+                    &mut self.laser_forwarded,
+                    &mut self.counters.commands_forwarded,
+                );
+                Some(self.output(Some(frame), head_back_rate))
+            }
+            Timing::FreeRunning => {
+                // The older frame's positions are superseded; its one-off command /
+                // laser control rides on the newer frame if that has none, else it is
+                // lost (counted).
+                let old = self.pending.as_ref().map(|o| (o.command, o.laser));
+                let next = self.pending.insert(ForwardFrame::default());
+                let t = self.tr.translate(f, next);
+                if let Some((command, laser)) = old {
+                    bump(&mut self.counters.skipped);
+                    if command.is_some() {
+                        if next.command.is_none() {
+                            next.command = command;
+                        } else {
+                            bump(&mut self.counters.commands_not_carried);
+                        }
+                    }
+                    if laser.is_some() {
+                        if next.laser.is_none() {
+                            next.laser = laser;
+                        } else {
+                            bump(&mut self.counters.laser_not_carried);
+                        }
+                    }
+                }
+                self.count_translation(&t);
+                None
+            }
+        }
+    }
+
+    /// Counts what a translation dropped and applies a controller backchannel-rate
+    /// command.
+    fn count_translation(&mut self, t: &Translated) {
         if t.command_dropped {
             bump(&mut self.counters.commands_not_carried);
         }
         if t.laser_dropped {
             bump(&mut self.counters.laser_not_carried);
         }
-        if let Some(LaserControl::Power { power, mo, pa, .. }) = f.laser {
-            self.power = Some(power);
-            self.mo_pa = mo && pa;
-        }
         if let Some(r) = t.back_rate {
             if self.config.controller.protocol == Protocol::Xy3 {
                 self.controller_rate = r;
                 self.rate_changed = Some(r);
                 self.status.note_rate_change();
-            }
-        }
-        match self.config.output.timing {
-            Timing::Slaved => Some(t.frame),
-            Timing::FreeRunning => {
-                let mut next = t.frame;
-                if let Some(old) = self.pending.take() {
-                    // The older frame's positions are superseded; its one-off
-                    // command / laser control rides on the newer frame if that has
-                    // none, else it is lost (counted).
-                    bump(&mut self.counters.skipped);
-                    if old.command.is_some() {
-                        if next.command.is_none() {
-                            next.command = old.command;
-                        } else {
-                            bump(&mut self.counters.commands_not_carried);
-                        }
-                    }
-                    if old.laser.is_some() {
-                        if next.laser.is_none() {
-                            next.laser = old.laser;
-                        } else {
-                            bump(&mut self.counters.laser_not_carried);
-                        }
-                    }
-                }
-                self.pending = Some(next);
-                None
             }
         }
     }
@@ -256,29 +276,52 @@ impl Bridge {
     /// park frames.
     pub fn tick(&mut self, now_ns: u64) -> Output {
         self.poll(now_ns);
-        let frame = match (self.sup.state(), self.config.output.timing) {
+        let state = self.sup.state();
+        if state == LinkState::Running
+            && self.config.output.timing == Timing::FreeRunning
+            && self.pending.is_some()
+        {
+            // The steady state: the newest input, completed where it lies and then
+            // moved out whole (no laser-off is due while running).
+            let mut head_back_rate = None;
+            if let Some(f) = self.pending.as_mut() {
+                head_back_rate = finish_frame(
+                    f,
+                    &mut self.held,
+                    &mut self.laser_forwarded,
+                    &mut self.counters.commands_forwarded,
+                );
+            }
+            let frame = self.pending.take();
+            return self.output(frame, head_back_rate);
+        }
+        let frame = match (state, self.config.output.timing) {
             (LinkState::Running, Timing::Slaved) => None,
-            (LinkState::Running, Timing::FreeRunning) => Some(match self.pending.take() {
-                Some(p) => p,
-                None => {
-                    bump(&mut self.counters.repeated);
-                    self.positions_only()
-                }
-            }),
+            (LinkState::Running, Timing::FreeRunning) => {
+                bump(&mut self.counters.repeated);
+                Some(self.positions_only())
+            }
             (LinkState::Holding, _) => Some(self.positions_only()),
             (LinkState::Safe, _) => match self.config.failsafe.after_hold {
                 AfterHold::Park => Some(self.park),
                 AfterHold::Stop => None,
             },
         };
+        let mut head_back_rate = None;
         let frame = frame.map(|mut f| {
-            if self.laser_off_due && self.sup.state() != LinkState::Running {
+            if self.laser_off_due && state != LinkState::Running {
                 f.laser = Some(LASER_OFF);
                 self.laser_off_due = false;
             }
+            head_back_rate = finish_frame(
+                &mut f,
+                &mut self.held,
+                &mut self.laser_forwarded,
+                &mut self.counters.commands_forwarded,
+            );
             f
         });
-        self.output(frame)
+        self.output(frame, head_back_rate)
     }
 
     /// The last sent positions, without command or laser control (one-offs are
@@ -291,30 +334,10 @@ impl Bridge {
         }
     }
 
-    /// Completes an output: fills missing axes from the held positions and records
-    /// what was sent.
-    fn output(&mut self, frame: Option<ForwardFrame>) -> Output {
-        let mut head_back_rate = None;
-        let frame = frame.map(|mut f| {
-            for (slot, held) in f.axes.iter_mut().zip(self.held.iter_mut()) {
-                match slot {
-                    Some(p) => *held = Some(*p),
-                    None => *slot = *held,
-                }
-            }
-            if f.laser.is_some() {
-                self.laser_forwarded = f.laser != Some(LASER_OFF);
-            }
-            if let Some(Command::Xy3(code)) = f.command {
-                bump(&mut self.counters.commands_forwarded);
-                if let Ok(xy3::Command::BackRate(r)) = xy3::Command::from_code(code) {
-                    head_back_rate = Some(r);
-                }
-            } else if f.command.is_some() {
-                bump(&mut self.counters.commands_forwarded);
-            }
-            f
-        });
+    /// The output for `frame` (already completed by [`finish_frame`]), with the
+    /// state, alarms and laser outputs of now and a pending controller rate change.
+    #[inline(always)]
+    fn output(&mut self, frame: Option<ForwardFrame>, head_back_rate: Option<BackRate>) -> Output {
         let running = self.sup.state() == LinkState::Running;
         let laser_cfg = &self.config.laser;
         let head_alarm = self.status.head.alarms.any() || self.sup.status_lost();
@@ -336,5 +359,41 @@ impl Bridge {
             head_back_rate,
             controller_back_rate: self.rate_changed.take(),
         }
+    }
+}
+
+/// Completes a frame about to be sent: fills missing axes from the held positions,
+/// records what is sent (held positions, laser control forwarded, commands counted)
+/// and returns the backchannel rate an XY3-100 command in it sets on the head.
+/// A free function over the fields it needs, so it can work on the pending frame in
+/// place while the rest of the bridge is borrowed too.
+fn finish_frame(
+    f: &mut ForwardFrame,
+    held: &mut [Option<Position>; 5],
+    laser_forwarded: &mut bool,
+    commands_forwarded: &mut u32,
+) -> Option<BackRate> {
+    for (slot, held) in f.axes.iter_mut().zip(held.iter_mut()) {
+        match slot {
+            Some(p) => *held = Some(*p),
+            None => *slot = *held,
+        }
+    }
+    if f.laser.is_some() {
+        *laser_forwarded = f.laser != Some(LASER_OFF);
+    }
+    match f.command {
+        Some(Command::Xy3(code)) => {
+            bump(commands_forwarded);
+            match xy3::Command::from_code(code) {
+                Ok(xy3::Command::BackRate(r)) => Some(r),
+                _ => None,
+            }
+        }
+        Some(_) => {
+            bump(commands_forwarded);
+            None
+        }
+        None => None,
     }
 }

@@ -7,21 +7,92 @@ use crate::model::{Axis, Command, ForwardFrame, Position};
 use crate::xy2::Mode;
 use crate::xy3::{self, BackRate};
 
+/// How one head axis is produced: from which input axis, at which width, inverted
+/// and shifted how. Resolved once from the configuration so the per-frame path does
+/// not re-derive widths and swaps, and works on the MSB-aligned value directly:
+/// rounding, inversion and offset are then a few word operations (the result equals
+/// [`map_position`], which the tests check).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct AxisRoute {
+    source: Axis,
+    /// Position 0 at the head width: the width of every result.
+    zero: Position,
+    /// The field's bits in the aligned value (the width from the top).
+    mask: u32,
+    /// Half an LSB of the field (0 for a 32-bit field: nothing to round).
+    half: u32,
+    /// XORed into the aligned value: `mask` to invert, 0 not to.
+    flip: u32,
+    /// `|offset|` LSBs aligned, saturated at the field (an offset as large as the
+    /// field takes any position to the end).
+    step: u32,
+    /// The offset is negative.
+    down: bool,
+}
+
+impl AxisRoute {
+    fn new(source: Axis, bits: u8, invert: bool, offset: i32) -> AxisRoute {
+        let bits = bits.clamp(1, 32);
+        let shift = 32 - u32::from(bits);
+        let mask = u32::MAX << shift;
+        let step = u64::from(offset.unsigned_abs()) << shift;
+        AxisRoute {
+            source,
+            zero: Position::from_raw(0, bits).unwrap_or(Position::CENTRE),
+            mask,
+            half: (1u32 << shift) >> 1,
+            flip: if invert { mask } else { 0 },
+            step: u32::try_from(step).unwrap_or(u32::MAX) & mask,
+            down: offset < 0,
+        }
+    }
+
+    fn apply(&self, input: &ForwardFrame) -> Option<Position> {
+        input.axis(self.source).map(|p| self.map(p))
+    }
+
+    /// `p` resized, inverted and shifted as configured.
+    #[inline(always)]
+    fn map(&self, p: Position) -> Position {
+        // Round to the field, saturating at full scale (as `Position::resized`).
+        let a = p.aligned();
+        let a = if a & self.mask == self.mask {
+            self.mask
+        } else {
+            a.wrapping_add(self.half) & self.mask
+        };
+        let a = a ^ self.flip;
+        // The offset saturates at both ends of the field instead of wrapping.
+        let a = if self.down {
+            a.saturating_sub(self.step)
+        } else {
+            a.saturating_add(self.step) & self.mask
+        };
+        // Every step kept the bits below the field zero.
+        self.zero.with_aligned(a)
+    }
+}
+
 /// The translation policy, fixed at construction.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub(crate) struct Translator {
     head: HeadSide,
-    axes: AxisMap,
-    z: ZConfig,
+    x: AxisRoute,
+    y: AxisRoute,
+    /// Z from the input (`ZSource::Input`).
+    z: Option<AxisRoute>,
+    /// Z when not from the input: the fixed position or none.
+    z_other: Option<Position>,
+    /// Widths of U and W; `None` unless the head is XY3-100 (only it has them).
+    uw_bits: Option<(u8, u8)>,
     laser_forward: bool,
 }
 
-/// One translated frame and what did not fit.
+/// What one translation did not carry.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub(crate) struct Translated {
-    /// The frame for the head.
-    pub frame: ForwardFrame,
     /// The input's command could not be carried.
     pub command_dropped: bool,
     /// The input's laser control was not forwarded.
@@ -31,19 +102,11 @@ pub(crate) struct Translated {
 }
 
 /// `p` at `bits`, inverted if asked, shifted by `offset` LSBs, clamped to the field:
-/// an offset must never wrap a position to the other end of the field.
+/// an offset must never wrap a position to the other end of the field. (The
+/// translator's own per-axis form of this, kept for the tests' arithmetic model.)
+#[cfg(test)]
 pub(super) fn map_position(p: Position, bits: u8, invert: bool, offset: i32) -> Position {
-    let p = p.resized(bits);
-    let p = if invert { p.inverted() } else { p };
-    if offset == 0 {
-        return p;
-    }
-    let max = (1i64 << bits.min(32)) - 1;
-    let raw = (i64::from(p.to_raw(bits)) + i64::from(offset)).clamp(0, max);
-    u32::try_from(raw)
-        .ok()
-        .and_then(|r| Position::from_raw(r, bits).ok())
-        .unwrap_or(p)
+    AxisRoute::new(Axis::X, bits, invert, offset).map(p)
 }
 
 /// A 20-bit configuration position at the head's width for `axis`.
@@ -55,11 +118,30 @@ pub(crate) fn config_position(head: &HeadSide, axis: Axis, raw20: u32) -> Option
 
 impl Translator {
     pub fn new(c: &Config) -> Self {
+        let a: &AxisMap = &c.axes;
+        let head = c.head;
+        let (src_x, src_y) = if a.swap_xy {
+            (Axis::Y, Axis::X)
+        } else {
+            (Axis::X, Axis::Y)
+        };
+        let route = |source, target, invert, offset| {
+            AxisRoute::new(source, head.width(target), invert, offset)
+        };
+        let z: &ZConfig = &c.z;
         Translator {
-            head: c.head,
-            axes: c.axes,
-            z: c.z,
-            laser_forward: c.laser.forward,
+            head,
+            x: route(src_x, Axis::X, a.invert_x, a.offset_x),
+            y: route(src_y, Axis::Y, a.invert_y, a.offset_y),
+            z: (z.source == ZSource::Input)
+                .then(|| route(Axis::Z, Axis::Z, a.invert_z, a.offset_z)),
+            z_other: match z.source {
+                ZSource::Fixed => config_position(&head, Axis::Z, z.fixed),
+                ZSource::Input | ZSource::None => None,
+            },
+            uw_bits: (head.protocol == Protocol::Xy3)
+                .then(|| (head.width(Axis::U), head.width(Axis::W))),
+            laser_forward: c.laser.forward && head.protocol == Protocol::Hans,
         }
     }
 
@@ -75,62 +157,45 @@ impl Translator {
         }
     }
 
-    pub fn translate(&self, input: &ForwardFrame) -> Translated {
-        let a = &self.axes;
-        let w = |axis| self.head.width(axis);
-        let (src_x, src_y) = if a.swap_xy {
-            (Axis::Y, Axis::X)
-        } else {
-            (Axis::X, Axis::Y)
+    /// Translates `input` into `out`, which must be empty (`ForwardFrame::default()`):
+    /// written in place because the caller keeps the result in its own slot.
+    pub fn translate(&self, input: &ForwardFrame, out: &mut ForwardFrame) -> Translated {
+        let [x, y, z, u, w] = &mut out.axes;
+        *x = self.x.apply(input);
+        *y = self.y.apply(input);
+        *z = match &self.z {
+            Some(route) => route.apply(input),
+            None => self.z_other,
         };
-        let mut out = ForwardFrame::default();
-        out.axes[Axis::X.index()] = input
-            .axis(src_x)
-            .map(|p| map_position(p, w(Axis::X), a.invert_x, a.offset_x));
-        out.axes[Axis::Y.index()] = input
-            .axis(src_y)
-            .map(|p| map_position(p, w(Axis::Y), a.invert_y, a.offset_y));
-        out.axes[Axis::Z.index()] = match self.z.source {
-            ZSource::Input => input
-                .axis(Axis::Z)
-                .map(|p| map_position(p, w(Axis::Z), a.invert_z, a.offset_z)),
-            ZSource::Fixed => config_position(&self.head, Axis::Z, self.z.fixed),
-            ZSource::None => None,
-        };
-        if self.head.protocol == Protocol::Xy3 {
+        if let Some((u_bits, w_bits)) = self.uw_bits {
             // Only XY3-100 has U and W; they pass resized, without mapping.
-            for axis in [Axis::U, Axis::W] {
-                out.axes[axis.index()] = input.axis(axis).map(|p| p.resized(w(axis)));
-            }
+            *u = input.axis(Axis::U).map(|p| p.resized(u_bits));
+            *w = input.axis(Axis::W).map(|p| p.resized(w_bits));
         }
-        let back_rate = match input.command {
-            Some(Command::Xy3(code)) => match xy3::Command::from_code(code) {
-                Ok(xy3::Command::BackRate(r)) => Some(r),
-                _ => None,
-            },
-            _ => None,
+        let mut t = Translated {
+            command_dropped: false,
+            laser_dropped: false,
+            back_rate: None,
         };
-        let mut command_dropped = false;
         if let Some(c) = input.command {
+            if let Command::Xy3(code) = c {
+                if let Ok(xy3::Command::BackRate(r)) = xy3::Command::from_code(code) {
+                    t.back_rate = Some(r);
+                }
+            }
             if self.carries(&c) {
                 out.command = Some(c);
             } else {
-                command_dropped = true;
+                t.command_dropped = true;
             }
         }
-        let mut laser_dropped = false;
         if let Some(l) = input.laser {
-            if self.laser_forward && self.head.protocol == Protocol::Hans {
+            if self.laser_forward {
                 out.laser = Some(l);
             } else {
-                laser_dropped = true;
+                t.laser_dropped = true;
             }
         }
-        Translated {
-            frame: out,
-            command_dropped,
-            laser_dropped,
-            back_rate,
-        }
+        t
     }
 }

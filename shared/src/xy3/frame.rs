@@ -208,21 +208,19 @@ const fn fits(value: u32, bits: u8) -> bool {
 
 /// Encodes a frame into its wire word (right-aligned, first bit on the line = bit 23
 /// or 31) and returns the word together with its size.
+///
+/// Each variant's arm names its size as a constant, so the shifts and masks fold
+/// (the transmitter encodes up to five of these per frame period).
 pub const fn encode(frame: &Frame) -> Result<(u32, FrameSize), EncodeError> {
-    let size = frame.size();
-    let counted = match *frame {
-        Frame::Position24(value) | Frame::Position32(value) => {
-            let bits = size.position_bits();
-            if !fits(value, bits) {
-                return Err(EncodeError::PositionTooWide { value, bits });
-            }
-            value
-        }
+    match *frame {
+        Frame::Position24(value) => position_word(value, FrameSize::Bits24),
+        Frame::Position32(value) => position_word(value, FrameSize::Bits32),
         Frame::Command24(code) => {
             if !fits(code, CODE_BITS) {
                 return Err(EncodeError::CodeTooWide(code));
             }
-            code
+            let size = FrameSize::Bits24;
+            Ok((assemble(size, false, code), size))
         }
         Frame::Command32 { code, unused } => {
             if !fits(code, CODE_BITS) {
@@ -231,10 +229,23 @@ pub const fn encode(frame: &Frame) -> Result<(u32, FrameSize), EncodeError> {
             if unused >> UNUSED_BITS != 0 {
                 return Err(EncodeError::UnusedTooWide(unused));
             }
-            (unused as u32) << CODE_BITS | code
+            let size = FrameSize::Bits32;
+            Ok((
+                assemble(size, false, (unused as u32) << CODE_BITS | code),
+                size,
+            ))
         }
-    };
-    Ok((assemble(size, frame.is_position(), counted), size))
+    }
+}
+
+/// The word of a position frame of `size`.
+#[inline(always)]
+const fn position_word(value: u32, size: FrameSize) -> Result<(u32, FrameSize), EncodeError> {
+    let bits = size.position_bits();
+    if !fits(value, bits) {
+        return Err(EncodeError::PositionTooWide { value, bits });
+    }
+    Ok((assemble(size, true, value), size))
 }
 
 /// Decodes one channel's wire word of the size the receiver's framing gave (the number

@@ -1,0 +1,276 @@
+//! What both bridge loops share ([`super::bridge`] for the GPIO waveform heads,
+//! [`super::bridge_hans`] for HANS-100 heads): the controller-side receiver run on
+//! the input halves, the `Bridge` engine, the head status the status tasks publish,
+//! the XY3-100 backchannel towards the controller, the laser gate and the
+//! supervision outputs. The loops only decide when an output slot is due and how
+//! its frame reaches the head.
+
+use core::sync::atomic::Ordering;
+
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::watch::AnonReceiver;
+use shared::bridge::{Bridge, Config, LinkState, Output, StatusForm, Timing, ZSource};
+use shared::model::{FaultKind, ForwardFrame, HeadStatus, Line, LineEvent};
+use shared::xy3::back::SEND_BUF_LEN;
+use shared::xy3::BackRate;
+use shared::{xy2, xy3};
+
+use crate::channels::{
+    set_laser_gate, BridgeSnapshot, Stats, Xy3Raw, BACK_RATE, BACK_TX, BRIDGE_BEAT,
+    BRIDGE_SNAPSHOT, CTRL_STATUS_OK, HEAD_STATUS, LINK_RUNNING, RAW_INPUT, SNAPSHOT_WANTED, STATS,
+    XY3_HALF, XY3_INPUT, XY3_LINES,
+};
+use crate::config::{Controller, Head};
+
+/// Gate-on history mask: the output computed now and the two before it must all
+/// have had the gate on. Both loops write two steps ahead of what the head is
+/// receiving (the waveform ring holds the playing and the queued batch; the HANS-100
+/// transmitter writes two slots ahead), so the laser never fires before the head has
+/// the first forwarded position.
+const GATE_ON_HISTORY: u8 = 0b111;
+
+/// XY2-100 input pins on port G (board wiring: PG0 SYNC, PG1 X, PG2 Y, PG3 Z). Z is
+/// received only with `z.source = "input"`: a frame period counts only if every
+/// received channel decodes, so an unconnected Z input (reading the RS-422 fail-safe
+/// level) would otherwise reject every frame.
+fn xy2_in_pins(config: &Config) -> xy2::rx::PinMap {
+    xy2::rx::PinMap {
+        sync: 0,
+        x: 1,
+        y: 2,
+        z: (config.z.source == ZSource::Input).then_some(3),
+    }
+}
+
+/// The controller-side receiver the bridge runs on the input halves.
+#[expect(
+    clippy::large_enum_variant,
+    reason = "one instance, inside the task's future; no heap to box into"
+)]
+enum Decoder {
+    /// XY2-100 port samples ([`RAW_INPUT`]).
+    Xy2(xy2::rx::Receiver),
+    /// XY3-100 SPI bytes and frame-end marks ([`XY3_INPUT`]).
+    Xy3(Xy3Decoder),
+}
+
+/// The XY3-100 receiver and where its byte count stands against the input task's.
+struct Xy3Decoder {
+    rx: xy3::rx::Receiver,
+    lines: xy3::rx::Lines,
+    /// The input session the receiver follows (`None` before the first half).
+    session: Option<u32>,
+    /// `first_byte` the next half must have to continue the byte stream.
+    next_byte: u32,
+}
+
+impl Xy3Decoder {
+    fn new(config: &Config) -> Self {
+        // X and Y always; Z only when the bridge takes Z from the input (an
+        // unconnected Z line would read dead and fail every period).
+        let lines = if config.z.source == ZSource::Input {
+            xy3::rx::Lines::XYZ
+        } else {
+            xy3::rx::Lines::XY
+        };
+        Xy3Decoder {
+            rx: xy3::rx::Receiver::new(lines),
+            lines,
+            session: None,
+            next_byte: 0,
+        }
+    }
+
+    /// Feeds one half and hands the events of every completed period to `emit`.
+    fn feed(&mut self, raw: &Xy3Raw, emit: &mut impl FnMut(LineEvent)) {
+        if self.session != Some(raw.session) || raw.first_byte != self.next_byte {
+            // A new input session (all lines restarted) or a lost half: the byte
+            // stream is not continuous, so start a receiver at this half's count
+            // (pending frame ends of the old stream are meaningless now).
+            if self.session.is_some() {
+                emit(LineEvent::Fault {
+                    line: Line::Framing,
+                    kind: FaultKind::Dropped,
+                });
+            }
+            self.rx = xy3::rx::Receiver::with_origin(self.lines, raw.first_byte);
+            self.session = Some(raw.session);
+        }
+        self.next_byte = raw.first_byte.wrapping_add(XY3_HALF as u32);
+        let [x, y, z] = &raw.bytes;
+        let all: [&[u8]; XY3_LINES] = [x, y, z];
+        let lines = all.get(..self.lines.count()).unwrap_or_default();
+        if let Err(e) = self.rx.push_bytes(lines) {
+            // Not reachable (one equal-length slice per configured line), but never
+            // silent: the bytes are not taken.
+            defmt::error!("xy3 receiver refused a half: {}", e);
+            return;
+        }
+        self.rx.push_ends(&raw.ends);
+        while let Some(period) = self.rx.poll() {
+            period.for_each_event(&mut *emit);
+        }
+    }
+}
+
+/// The shared state of a bridge loop.
+pub(super) struct Core {
+    /// The engine.
+    pub(super) bridge: Bridge,
+    decoder: Decoder,
+    head_status: AnonReceiver<'static, CriticalSectionRawMutex, HeadStatus, 2>,
+    /// An XY2 head with a STATUS level reports only changes; the line itself is
+    /// always there (an open RS-485 receiver reads its fail-safe level, which the
+    /// debouncer reports as a level), so the status counts as seen every batch.
+    level_status: bool,
+    ctrl_level: xy2::StatusLevel,
+    /// XY3-100 controller: the bridge's backchannel packets go out through BACK_TX.
+    back_ctrl: bool,
+    back_buf: [u8; SEND_BUF_LEN],
+    rate_due: Option<BackRate>,
+    gate_history: u8,
+    /// The bridge has been `Running` once (safe start-up: no frame before).
+    started: bool,
+}
+
+impl Core {
+    /// The bridge and receiver for the configuration, or why there are none.
+    pub(super) fn new(
+        config: &Config,
+        head: Head,
+        controller: Controller,
+    ) -> Result<Core, &'static str> {
+        let bridge = Bridge::new(config).map_err(|_| "configuration refused")?;
+        if config.output.timing == Timing::Slaved {
+            // Slaved output sends each frame from `on_line_event`, which needs the
+            // output position per input frame; both loops run free.
+            return Err("output.timing = \"slaved\" is not supported by this firmware yet");
+        }
+        let decoder = match controller {
+            Controller::Xy2 => {
+                let link = xy2::LinkConfig {
+                    mode: config.controller.xy2.mode,
+                    parity: config.controller.xy2.parity,
+                };
+                xy2::rx::Receiver::new(xy2_in_pins(config), link)
+                    .map(Decoder::Xy2)
+                    .map_err(|_| "XY2-100 receiver pin map refused")?
+            }
+            Controller::Xy3 => Decoder::Xy3(Xy3Decoder::new(config)),
+        };
+        Ok(Core {
+            bridge,
+            decoder,
+            head_status: HEAD_STATUS.anon_receiver(),
+            level_status: head == Head::Xy2 && config.head.xy2.status == StatusForm::Level,
+            ctrl_level: xy2::StatusLevel {
+                polarity: config.controller.xy2.polarity,
+            },
+            back_ctrl: controller == Controller::Xy3,
+            back_buf: [0; SEND_BUF_LEN],
+            rate_due: None,
+            gate_history: 0,
+            started: false,
+        })
+    }
+
+    /// Decodes every input half that arrived since the last call; the events go to
+    /// `sink` in time order.
+    pub(super) fn take_input(&mut self, sink: &mut impl FnMut(LineEvent)) {
+        match &mut self.decoder {
+            Decoder::Xy2(rx) => {
+                while let Ok(raw) = RAW_INPUT.try_receive() {
+                    rx.feed(&raw, &mut |ev| ev.line_events(&mut *sink));
+                }
+            }
+            Decoder::Xy3(rx) => {
+                while let Ok(raw) = XY3_INPUT.try_receive() {
+                    rx.feed(&raw, sink);
+                }
+            }
+        }
+    }
+
+    /// Takes the head status the status tasks published (XY2 level, XY3
+    /// backchannel, HANS STATUS) at bridge time `now_ns`.
+    pub(super) fn take_head_status(&mut self, now_ns: u64) {
+        if let Some(s) = self.head_status.try_changed() {
+            *self.bridge.head_status_mut() = s;
+            self.bridge.status_seen(now_ns);
+        } else if self.level_status {
+            self.bridge.status_seen(now_ns);
+        }
+    }
+
+    /// One output slot at bridge time `t_ns`: `events` (the input of this slot) go
+    /// to the bridge, then `tick`. Returns the frame to send (`None` before the
+    /// bridge was first `Running`, and when the bridge sends nothing) and whether
+    /// the bridge allows the laser gate.
+    pub(super) fn slot(
+        &mut self,
+        events: impl IntoIterator<Item = LineEvent>,
+        t_ns: u64,
+    ) -> (Option<ForwardFrame>, bool) {
+        for le in events {
+            // Free-running only (checked in `new`): the engine keeps the newest
+            // frame for the next `tick`; the immediate output is always `None`.
+            let _ = self.bridge.on_line_event(t_ns, le);
+        }
+        let o: Output = self.bridge.tick(t_ns);
+        let running = o.state == LinkState::Running;
+        self.started |= running;
+        LINK_RUNNING.store(running, Ordering::Relaxed);
+        // One UART serves both sides (channels::BACK_RATE); the controller's
+        // command and the head's (the same command, forwarded) agree.
+        if let Some(rate) = o.controller_back_rate.or(o.head_back_rate) {
+            self.rate_due = Some(rate);
+        }
+        let frame = if self.started { o.frame } else { None };
+        (frame, o.laser.gate)
+    }
+
+    /// After a batch of slots (`gate`: every slot allowed the gate) at bridge time
+    /// `now_ns`: the laser gate (off at once; on only after [`GATE_ON_HISTORY`]
+    /// batches), the statistics snapshot, the XY2 STATUS level towards the
+    /// controller, the supervisor's heartbeat and the XY3-100 backchannel.
+    pub(super) fn end_batch(&mut self, gate: bool, now_ns: u64) {
+        self.gate_history = (self.gate_history << 1 | u8::from(gate)) & GATE_ON_HISTORY;
+        let gate_on = self.gate_history == GATE_ON_HISTORY;
+        set_laser_gate(gate_on);
+        if SNAPSHOT_WANTED.swap(false, Ordering::Relaxed) {
+            BRIDGE_SNAPSHOT.signal(BridgeSnapshot {
+                counters: *self.bridge.counters(),
+                state: self.bridge.state(),
+                alarms: self.bridge.alarms(),
+                reported: self.bridge.reported_alarms(),
+                gate: gate_on,
+            });
+        }
+        let ok = self.ctrl_level.health(self.bridge.xy2_status_line_high()) == xy2::Health::Ok;
+        CTRL_STATUS_OK.store(ok, Ordering::Relaxed);
+        BRIDGE_BEAT.fetch_add(1, Ordering::Relaxed);
+        self.backchannel(now_ns);
+    }
+
+    /// XY3-100 backchannel towards the controller: a rate change waits until the
+    /// bytes made for the old rate have left `BACK_TX`; otherwise, when a whole
+    /// packet fits, `Bridge::xy3_back_poll` writes the next bytes.
+    fn backchannel(&mut self, now_ns: u64) {
+        if let Some(rate) = self.rate_due {
+            // The backchannel task finishes the write it has taken first.
+            if !self.back_ctrl || BACK_TX.is_empty() {
+                BACK_RATE.signal(rate);
+                self.rate_due = None;
+            }
+        }
+        if self.back_ctrl && self.rate_due.is_none() && BACK_TX.free_capacity() >= SEND_BUF_LEN {
+            match self.bridge.xy3_back_poll(now_ns, &mut self.back_buf) {
+                // Fits: the bridge is the only writer and checked the space.
+                Ok(n) => {
+                    let _ = BACK_TX.try_write(self.back_buf.get(..n).unwrap_or_default());
+                }
+                Err(_) => Stats::bump(&STATS.back_errors),
+            }
+        }
+    }
+}

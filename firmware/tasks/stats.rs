@@ -1,0 +1,132 @@
+//! The once-a-second defmt summary: what the line tasks counted ([`STATS`], taken and
+//! zeroed), the head's alarms, and the bridge engine's own view (counters, link state,
+//! alarms) from a [`BridgeSnapshot`] the bridge task copies on request.
+
+use core::sync::atomic::Ordering;
+
+use embassy_time::{with_timeout, Duration, Ticker};
+use shared::bridge::{Counters, LineCounters};
+use shared::model::{Axis, Line};
+
+use crate::channels::{
+    BridgeSnapshot, Stats, BRIDGE_SNAPSHOT, HEAD_STATUS, SNAPSHOT_WANTED, STATS,
+};
+
+/// How long to wait for the bridge's snapshot: it answers within one output batch
+/// (at most 250 us); longer means it is not running (stalled, never started, or a
+/// HANS-100 head, which has no bridge loop yet).
+const SNAPSHOT_WAIT: Duration = Duration::from_millis(5);
+
+/// Every line the bridge counts faults on, in print order.
+const LINES: [Line; 13] = [
+    Line::Axis(Axis::X),
+    Line::Axis(Axis::Y),
+    Line::Axis(Axis::Z),
+    Line::Axis(Axis::U),
+    Line::Axis(Axis::W),
+    Line::HansChannel(1),
+    Line::HansChannel(2),
+    Line::HansChannel(3),
+    Line::HansChannel(4),
+    Line::HansChannel(5),
+    Line::Framing,
+    Line::Status,
+    Line::Backchannel,
+];
+
+/// `now - before` per field (the bridge's counters saturate, so they never go back).
+fn line_delta(now: LineCounters, before: LineCounters) -> LineCounters {
+    LineCounters {
+        check_failed: now.check_failed.saturating_sub(before.check_failed),
+        framing: now.framing.saturating_sub(before.framing),
+        resyncs: now.resyncs.saturating_sub(before.resyncs),
+        dropped: now.dropped.saturating_sub(before.dropped),
+        disagree: now.disagree.saturating_sub(before.disagree),
+    }
+}
+
+/// Prints the bridge's view: link state, gate and alarms, then what its counters
+/// gained since `before`, then one line per input line that had faults.
+fn print_bridge(s: &BridgeSnapshot, before: &Counters) {
+    let c = &s.counters;
+    let d = |now: u32, old: u32| now.saturating_sub(old);
+    defmt::info!(
+        "1 s bridge: {}, gate {}, alarms own {=u32:#x} reported {=u32:#x}; frames ok {}, \
+         not forwarded {}, repeated {}, skipped {}, commands forwarded {} / not carried {}, \
+         laser not carried {}, input losses {}, recoveries {}, status losses {}",
+        s.state,
+        s.gate,
+        s.alarms.0,
+        s.reported.0,
+        d(c.frames_ok, before.frames_ok),
+        d(c.not_forwarded, before.not_forwarded),
+        d(c.repeated, before.repeated),
+        d(c.skipped, before.skipped),
+        d(c.commands_forwarded, before.commands_forwarded),
+        d(c.commands_not_carried, before.commands_not_carried),
+        d(c.laser_not_carried, before.laser_not_carried),
+        d(c.input_losses, before.input_losses),
+        d(c.recoveries, before.recoveries),
+        d(c.status_losses, before.status_losses),
+    );
+    for line in LINES {
+        let f = line_delta(c.line(line), before.line(line));
+        if f.total() > 0 {
+            defmt::info!(
+                "1 s bridge {}: check failed {}, framing {}, resyncs {}, dropped {}, disagree {}",
+                line,
+                f.check_failed,
+                f.framing,
+                f.resyncs,
+                f.dropped,
+                f.disagree,
+            );
+        }
+    }
+}
+
+/// Once a second: a defmt summary of what the line tasks counted, the head's alarms
+/// and the bridge's own counters, link state and alarms.
+#[embassy_executor::task]
+pub async fn stats() {
+    let mut head = HEAD_STATUS.anon_receiver();
+    let mut ticker = Ticker::every(Duration::from_secs(1));
+    let mut before = Counters::default();
+    loop {
+        ticker.next().await;
+        // Ask first: the bridge answers after its current batch, while the line
+        // counters below are printed.
+        BRIDGE_SNAPSHOT.reset();
+        SNAPSHOT_WANTED.store(true, Ordering::Relaxed);
+        let alarms = head.try_get().map(|s| s.alarms.0).unwrap_or(0);
+        let s = &STATS;
+        defmt::info!(
+            "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames ({} refused), {} halves \
+             ({} underruns), back {} packets ({} resyncs, {} errors), status changes {} \
+             ({} bad frames), head alarms {=u32:#x}",
+            Stats::take(&s.input_halves),
+            Stats::take(&s.input_overruns),
+            Stats::take(&s.sync_marks),
+            Stats::take(&s.output_frames),
+            Stats::take(&s.output_refused),
+            Stats::take(&s.output_halves),
+            Stats::take(&s.output_underruns),
+            Stats::take(&s.back_packets),
+            Stats::take(&s.back_resyncs),
+            Stats::take(&s.back_errors),
+            Stats::take(&s.status_changes),
+            Stats::take(&s.status_faults),
+            alarms,
+        );
+        match with_timeout(SNAPSHOT_WAIT, BRIDGE_SNAPSHOT.wait()).await {
+            Ok(snap) => {
+                print_bridge(&snap, &before);
+                before = snap.counters;
+            }
+            Err(_) => {
+                SNAPSHOT_WANTED.store(false, Ordering::Relaxed);
+                defmt::warn!("1 s bridge: no snapshot (bridge loop not running)");
+            }
+        }
+    }
+}
