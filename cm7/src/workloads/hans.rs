@@ -3,8 +3,8 @@
 //!
 //! The buffers come from a tiny fixed-point line model (no std): random frames sent
 //! back to back, sampled at `fs` with an odd start phase and a fixed skew of up to
-//! ±1 sample per channel. The receiver first locks on [`WARM_FRAMES`] frames outside
-//! the window; the window then decodes [`MEASURED`] frames.
+//! ±1 sample per channel. The receiver first locks and settles on [`WARM_FRAMES`]
+//! frames outside the window; the window then decodes [`MEASURED`] frames.
 
 use super::{Window, Workload};
 use crate::tests::prng::Prng;
@@ -13,8 +13,9 @@ use shared::hans::rx::{HansRx, Mode, RxEvent};
 use shared::hans::tx::Transmitter;
 use shared::hans::{Frame, RING_BYTES};
 
-/// Frames decoded before the window (acquisition).
-const WARM_FRAMES: usize = 6;
+/// Frames decoded before the window: acquisition (hunt, rate measurement) and the
+/// settling of the per-channel delays, so the window shows the steady state.
+const WARM_FRAMES: usize = 24;
 /// Frames decoded inside the window.
 const MEASURED: usize = 32;
 /// Words per channel for all frames at up to 4x (500 samples per frame), plus slack.

@@ -7,57 +7,88 @@
 //! every ring covers the same 16 instants. [`HansRx::push`] takes the same stretch of
 //! each ring (e.g. one DMA half) in any chunking; results do not depend on it.
 //!
-//! # Per channel ([`channel`])
-//! Every channel used by the mode has its own clock recovery and framing: start-edge
-//! hunting on the `1 1 1 0 1` marker, bit-rate measurement over one frame, centre
-//! sampling, and a phase/rate tracking filter fed by the start edge of every frame.
-//! This yields one raw 125-bit pattern per channel and frame period.
+//! # One clock, one delay per channel
+//! All five channels come from one sender clock, so the receiver recovers the frame
+//! timing once ([`timing`]) and gives each channel only a delay against it
+//! ([`channel`]):
+//! 1. **Hunt** (no timing yet): every used channel looks for the `1 1 1 0 1`
+//!    start marker word by word; the first to see two of them one frame period
+//!    (±5 %) apart sets the timing: start edge and bit rate, measured over a whole
+//!    frame before any bit is trusted.
+//! 2. **Frames**: the words are copied into per-channel rings ([`ring`]); once a
+//!    frame's last bit has arrived on every channel, it is decoded in one go (and
+//!    published right away). The **reference** channel's 125 bit centres are gathered window by window
+//!    (32 samples) with a per-phase table and four multiplications ([`table`]);
+//!    every other aligned channel is checked **centre for centre** against the
+//!    reference's samples, shifted by the whole samples between their delays. A
+//!    channel that matches everywhere holds the reference's pattern; one that
+//!    differs anywhere is gathered in full at its own delay and checked on its own.
+//!    The centre-sample semantics are those of a per-channel sampler: a channel's
+//!    pattern is its samples nearest to `start + delay + (k + ½)·bit`.
+//! 3. **Tracking**: each channel's next start edge is searched ±1.5 bits around
+//!    its prediction (exactly one falling edge lies there on a good line). The
+//!    upper median of the edges of the channels that just verified (a glitch before
+//!    the real edge reads early) corrects phase and rate with an alpha-beta filter;
+//!    each channel's delay follows its own deviation from that consensus (averaged,
+//!    steps clamped to a sample). A channel that matched the reference and whose
+//!    delay has settled is re-measured only every eighth frame. A channel without
+//!    an edge, or failing three patterns in a row, drops its alignment and aligns
+//!    again at the next frame's start edge; when no channel is left, or none
+//!    verifies for three frames (a false lock), the hunt starts over. The reference
+//!    moves to another channel as soon as it stops verifying, so a line that dies
+//!    costs the others nothing.
+//!
+//! Skew between channels (up to ±2 samples, and more) is absorbed by the delays;
+//! jitter and rate offset are handled as by a per-channel receiver (see the README
+//! "Measured figures" for the limits).
 //!
 //! # Modes
 //! - [`Mode::Normal`]: one channel's pattern is checked by [`Frame::decode`]
 //!   (start pair, all 60 complement pairs, stop bits); only a frame that passes is
 //!   published.
 //! - [`Mode::Vote3`] / [`Mode::Vote5`]: **we vote per recovered bit**, not per raw
-//!   sample: each channel recovers its own bits with its own timing, so up to ±2
-//!   samples of skew between channels (two thirds of a bit at 3x) is absorbed by the
-//!   per-channel timing instead of smearing the vote. The patterns of one frame
-//!   period are combined by bitwise majority (2 of 3, 3 of 5) and the result must
-//!   still pass every check. A channel without a pattern in that period (no sync)
-//!   votes zeros, as a dead line would.
+//!   sample: each channel's bits are taken at its own delay, so skew between
+//!   channels is absorbed instead of smearing the vote. The patterns of one frame
+//!   are combined by bitwise majority (2 of 3, 3 of 5) and the result must still
+//!   pass every check. A channel without a pattern (not aligned) votes zeros, as a
+//!   dead line would. When every voter matched the reference, the majority is the
+//!   reference's pattern.
 //! - [`Mode::Super`]: every channel's pattern is checked on its own; the frame held
 //!   by a **strict majority of the verified channels** is published (one verified
 //!   channel alone suffices); verified channels that disagree without a strict
-//!   majority reject the period ([`FaultKind::Disagree`] on [`Line::Framing`]), and
+//!   majority reject the frame ([`FaultKind::Disagree`] on [`Line::Framing`]), and
 //!   verified channels in the minority get a per-channel `Disagree`.
-//!
-//! Patterns of one period are grouped by time: the channels finish a frame within a
-//! few samples of each other, so a period closes when every used channel has
-//! reported, or two words (32 samples) after the first report.
 //!
 //! # Events and counters
 //! A sink receives [`RxEvent`]s: frames, per-channel faults (check failed, resync,
-//! disagreement) and period faults; [`RxEvent::to_line_event`] gives the bridge's
+//! disagreement) and frame faults; [`RxEvent::to_line_event`] gives the bridge's
 //! [`LineEvent`]. Per-channel [`ChannelStats`] count frames that passed, frames that
 //! failed a check and losses of alignment. No frame that failed a check is ever
 //! published, nothing panics, and the work per word is bounded.
 //!
-//! # Cost (QEMU Cortex-M7, `cargo xtask qemu`)
-//! Every used channel runs the full sampler, so the cost grows with the channels:
-//! about 4 400 instructions per frame for one channel at 3x, 5 200 at 4x, 12 200 for
-//! vote3 and 19 700-19 900 for vote5 / super (5 channels, 3x). **This is far over the
-//! 1 200-instruction frame budget.** The per-bit sampler (about 7 instructions per
-//! bit, 125 bits per channel and frame) is the floor of this design; meeting the
-//! budget needs the shared-timing design sketched in the branch report (one clock
-//! recovery for all channels, table-driven bit gathering, and the other channels
-//! verified by masked word compares against the reference).
+//! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
+//! About 1 950 instructions per frame for one channel at 3x (2 100 at 4x), 3 250
+//! for vote3 and 4 250 for vote5 / super (5 channels, 3x), against 4 400 / 5 200 /
+//! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame that is
+//! roughly: gathering the reference ~1 000 (about 65 per 32-sample window), its
+//! decode 150, copying the rings ~3 per word and channel, and per other channel
+//! ~13 per window for the centre compare plus ~100 of bookkeeping. **Still over
+//! the 1 200-instruction budget of the worst path**; what is left is listed in the
+//! README ("Known limits").
 
 pub mod channel;
 pub mod modes;
+pub mod ring;
+pub mod table;
+pub mod timing;
 
-use crate::hans::Frame;
+use crate::hans::{DecodeError, Frame, FRAME_BITS};
 use crate::model::{FaultKind, Line, LineEvent};
-use channel::ChannelRx;
+use channel::Channel;
 use modes::{majority3, majority5, super_vote, SuperOutcome};
+use ring::{diff, Centres, Ring, FRAC, HALF, RING_WORDS};
+use table::Table;
+use timing::Timing;
 
 /// Number of HANS-100 data channels.
 pub const CHANNELS: usize = 5;
@@ -65,9 +96,13 @@ pub const CHANNELS: usize = 5;
 /// The bit rate of the sender, Hz.
 pub const BIT_RATE_HZ: u32 = 12_500_000;
 
-/// Words after a period's first pattern at which it closes (2 words = 32 samples,
-/// far more than skew plus jitter, far less than a frame).
-const PERIOD_WORDS: u8 = 2;
+/// Failing patterns in a row after which a channel's alignment (or, when no channel
+/// verifies, the shared lock) is abandoned.
+pub const RELOCK_AFTER: u8 = 3;
+
+/// A channel that matches the reference and has a settled delay has its start edge
+/// measured only every this many frames (its delay is a fixed skew).
+const REMEASURE: u32 = 8;
 
 /// Which channels are decoded and how they are combined (channels numbered 1..=5).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -183,23 +218,35 @@ pub struct ChannelStats {
     pub resyncs: u32,
 }
 
-/// Patterns of the frame period being collected.
-#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
-struct Period {
-    patterns: [Option<u128>; CHANNELS],
-    /// Words since the first pattern; `None` while no period is open.
-    age: Option<u8>,
-}
-
 /// The HANS-100 receiver (see the module docs).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub struct HansRx {
     mode: Mode,
     used: u8,
-    channels: [ChannelRx; CHANNELS],
     stats: [ChannelStats; CHANNELS],
-    period: Period,
     rejected: u32,
+    rings: [Ring; CHANNELS],
+    /// Stream words stored per channel (wrapping).
+    written: u32,
+    channels: [Channel; CHANNELS],
+    timing: Timing,
+    table: Table,
+    /// The reference's centres of the frame being decoded (kept here only to spare
+    /// clearing it every frame).
+    centres: Centres,
+    locked: bool,
+    /// While locked: the stream word (modulo 4 096) before which the frame has all
+    /// its samples ([`HansRx::need`]).
+    need: u32,
+    /// The last decoded frame, whose successor's start edges are still to be
+    /// measured: the channels that verified and those that matched the reference.
+    pending: Option<(u8, u8)>,
+    /// Index of the reference channel: gathered in full, the others compared to it.
+    reference: usize,
+    /// Consecutive frames in which no channel verified.
+    dry: u8,
+    /// Frames decoded (wrapping; paces the re-measuring of settled delays).
+    frames: u32,
 }
 
 impl HansRx {
@@ -226,13 +273,24 @@ impl HansRx {
         let ratio = (u64::from(sample_hz) << 16) / u64::from(BIT_RATE_HZ);
         // 3..=4 times 2^16 fits i32.
         let ratio = i32::try_from(ratio).unwrap_or(i32::MAX);
+        let used = mode.channel_mask();
         Ok(HansRx {
             mode,
-            used: mode.channel_mask(),
-            channels: [ChannelRx::new(ratio); CHANNELS],
+            used,
             stats: [ChannelStats::default(); CHANNELS],
-            period: Period::default(),
             rejected: 0,
+            rings: [Ring::default(); CHANNELS],
+            written: 0,
+            channels: [Channel::default(); CHANNELS],
+            timing: Timing::new(ratio),
+            table: Table::new(ratio),
+            centres: Centres::default(),
+            locked: false,
+            need: 0,
+            pending: None,
+            reference: used.trailing_zeros() as usize,
+            dry: 0,
+            frames: 0,
         })
     }
 
@@ -270,10 +328,7 @@ impl HansRx {
         let used_present = (0..CHANNELS)
             .filter(|n| self.used & (1 << n) != 0)
             .all(|n| n < chunks.len());
-        if !used_present {
-            len = 0;
-        }
-        if len == usize::MAX {
+        if !used_present || len == usize::MAX {
             len = 0;
         }
         if longest > len {
@@ -282,78 +337,217 @@ impl HansRx {
                 kind: FaultKind::Dropped,
             });
         }
-        for i in 0..len {
-            for (n, chunk) in chunks.iter().enumerate().take(CHANNELS) {
-                if self.used & (1 << n) == 0 {
+        let mut at = 0;
+        loop {
+            if self.locked {
+                // Words still missing before the frame can be decoded (positions
+                // count words modulo 4 096, see `ring`).
+                let missing = ((self.need << 20).wrapping_sub(self.written << 20)) as i32 >> 20;
+                if missing <= 0 {
+                    // The start edges of this frame move the timing on from the
+                    // last one, then the frame is decoded.
+                    if let Some((verified, same)) = self.pending.take() {
+                        self.next(verified, same, sink);
+                    }
+                    if self.locked {
+                        self.frame(sink);
+                    }
+                    self.need = self.need();
                     continue;
                 }
-                let Some(&word) = chunk.get(i) else { continue };
-                self.word(n, word, sink);
+                if at >= len {
+                    break;
+                }
+                let n = (missing as usize).min(len - at).min(RING_WORDS / 2);
+                self.store(chunks, at, n);
+                at += n;
+            } else {
+                if at >= len {
+                    break;
+                }
+                self.store(chunks, at, 1);
+                at += 1;
+                self.hunt();
             }
-            self.end_word(sink);
         }
     }
 
-    /// One word of channel index `n`.
-    fn word(&mut self, n: usize, word: u16, sink: &mut impl FnMut(RxEvent)) {
-        let (Some(ch), Some(stats)) = (self.channels.get_mut(n), self.stats.get_mut(n)) else {
-            return;
-        };
-        let step = ch.push(word);
-        if step.lost {
-            stats.resyncs = stats.resyncs.wrapping_add(1);
-            sink(RxEvent::Fault {
-                channel: Some(number(n)),
-                kind: FaultKind::Resync,
-            });
-        }
-        if let Some(p) = step.pattern {
-            if let Some(slot) = self.period.patterns.get_mut(n) {
-                // A second pattern within one period cannot be a real frame; the
-                // first one stands.
-                if slot.is_none() {
-                    *slot = Some(p);
+    /// Copies words `at..at + n` of every used channel into the rings.
+    fn store(&mut self, chunks: &[&[u16]], at: usize, n: usize) {
+        for (k, (ring, chunk)) in self.rings.iter_mut().zip(chunks).enumerate() {
+            if self.used & (1 << k) != 0 {
+                if let Some(src) = chunk.get(at..at + n) {
+                    ring.write(self.written, src);
                 }
             }
-            if self.period.age.is_none() {
-                self.period.age = Some(0);
-            }
         }
+        self.written = self.written.wrapping_add(n as u32);
     }
 
-    /// After one word of every used channel: closes the period when it is complete.
-    fn end_word(&mut self, sink: &mut impl FnMut(RxEvent)) {
-        let Some(age) = self.period.age else { return };
-        let mut have = 0u8;
-        for (n, p) in self.period.patterns.iter().enumerate() {
-            if p.is_some() {
-                have |= 1 << n;
-            }
+    /// The stream word (modulo 4 096) before which every sample the next frame
+    /// needs has arrived: its last bit centre on the latest channel, so a frame is
+    /// published as soon as its last bit is in.
+    fn need(&self) -> u32 {
+        let t = &self.timing;
+        let mut late = 0;
+        for n in bits(self.used) {
+            let d = self.channels.get(n).and_then(|c| c.delay);
+            // A channel aligning at this frame may be up to the delay limit late.
+            late = late.max(d.unwrap_or(channel::DELAY_MAX));
         }
-        if have == self.used || age >= PERIOD_WORDS {
-            self.close(sink);
+        // The frame to decode next starts at the current edge, or, once that frame
+        // is done, at the predicted next one (whose edge window lies before its
+        // last centre).
+        let start = if self.pending.is_some() {
+            t.predicted()
         } else {
-            self.period.age = Some(age + 1);
+            t.start
+        };
+        let last = start
+            .wrapping_add((t.ratio as u32).wrapping_mul(FRAME_BITS as u32 - 1))
+            .wrapping_add((t.ratio / 2) as u32)
+            .wrapping_add(HALF);
+        // Two samples of slack: a table-gathered centre (or a shifted compare) may
+        // fall one sample after the exact position.
+        (last.wrapping_add(late as u32).wrapping_add(2 << FRAC) >> 20).wrapping_add(1)
+    }
+
+    /// Hunts in the word just stored, on every used channel; the first channel to
+    /// confirm a frame period sets the shared timing.
+    fn hunt(&mut self) {
+        let index = self.written.wrapping_sub(1);
+        let threshold = self.timing.hunt_threshold();
+        let bounds = self.timing.bounds;
+        let mut lock = None;
+        for (n, (ch, ring)) in self.channels.iter_mut().zip(&self.rings).enumerate() {
+            if self.used & (1 << n) == 0 {
+                continue;
+            }
+            let (w, prev) = ring.word_and_prev(index);
+            if let Some(found) = ch.hunt(index, w, prev, threshold, bounds) {
+                lock = Some((n, found));
+                break;
+            }
+        }
+        if let Some((n, (start, period))) = lock {
+            self.timing.lock(start, period);
+            self.locked = true;
+            self.pending = None;
+            self.reference = n;
+            self.dry = 0;
+            for ch in self.channels.iter_mut() {
+                ch.reset_hunt();
+                ch.unalign();
+            }
+            if let Some(ch) = self.channels.get_mut(n) {
+                ch.align(0);
+            }
+            self.need = self.need();
         }
     }
 
-    /// Evaluates the collected period in the configured mode.
-    fn close(&mut self, sink: &mut impl FnMut(RxEvent)) {
-        let patterns = self.period.patterns;
-        self.period = Period::default();
-        // Every present pattern is checked on its own for the channel's counters.
-        let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
-        for (n, p) in patterns.iter().enumerate() {
-            let (Some(p), Some(stats), Some(ch)) =
-                (p, self.stats.get_mut(n), self.channels.get_mut(n))
-            else {
+    /// Decodes the frame at the current start edge on every aligned channel, then
+    /// finds the next start edge.
+    fn frame(&mut self, sink: &mut impl FnMut(RxEvent)) {
+        let ratio = self.timing.ratio;
+        let start = self.timing.start;
+        let half_bit = (ratio / 2) as u32 + HALF;
+        // Channels not aligned yet try at this frame's start edge.
+        let mut aligned = 0u8;
+        for n in bits(self.used) {
+            let (Some(ch), Some(ring)) = (self.channels.get_mut(n), self.rings.get(n)) else {
                 continue;
             };
-            let decoded = Frame::decode(*p);
-            let relock = ch.checked(decoded.is_ok());
+            if ch.delay.is_none() {
+                if let Some(e) = Channel::edge(ring, start, ratio) {
+                    ch.align(diff(e, start));
+                }
+            }
+            if ch.delay.is_some() {
+                aligned |= 1 << n;
+            }
+        }
+        if aligned & (1 << self.reference) == 0 {
+            if aligned == 0 {
+                self.lose(sink);
+                return;
+            }
+            self.reference = aligned.trailing_zeros() as usize;
+        }
+        let reference = self.reference;
+        let delay = |n: usize| self.channels.get(n).and_then(|c| c.delay).unwrap_or(0);
+        let ref_delay = delay(reference);
+        self.table.follow(ratio);
+        let Some(ring) = self.rings.get(reference) else {
+            return;
+        };
+        let first = start.wrapping_add(ref_delay as u32).wrapping_add(half_bit);
+        let ref_pattern = if aligned == 1 << reference {
+            ring.gather::<false>(&mut self.table, first, ratio as u32, &mut self.centres)
+        } else {
+            ring.gather::<true>(&mut self.table, first, ratio as u32, &mut self.centres)
+        };
+        let mut patterns = [None; CHANNELS];
+        let mut same = 1u8 << reference;
+        for n in bits(aligned) {
+            let (Some(slot), Some(ring)) = (patterns.get_mut(n), self.rings.get(n)) else {
+                continue;
+            };
+            if n == reference {
+                *slot = Some(ref_pattern);
+                continue;
+            }
+            let d = delay(n);
+            // Same centres shifted by the whole samples between the two channels: a
+            // match means this channel's pattern is the reference's.
+            let rel = (d - ref_delay + HALF as i32) >> FRAC;
+            *slot = Some(if ring.agrees(&self.centres, rel) {
+                same |= 1 << n;
+                ref_pattern
+            } else {
+                ring.gather::<false>(
+                    &mut self.table,
+                    start.wrapping_add(d as u32).wrapping_add(half_bit),
+                    ratio as u32,
+                    &mut Centres::default(),
+                )
+            });
+        }
+        let verified = self.evaluate(&patterns, aligned, same, ref_pattern, sink);
+        self.pending = Some((verified, same));
+    }
+
+    /// Checks every pattern and applies the decode mode. Returns the channels that
+    /// verified.
+    fn evaluate(
+        &mut self,
+        patterns: &[Option<u128>; CHANNELS],
+        present: u8,
+        same: u8,
+        ref_pattern: u128,
+        sink: &mut impl FnMut(RxEvent),
+    ) -> u8 {
+        let ref_decoded = Frame::decode(ref_pattern);
+        let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
+        let mut ok = 0u8;
+        for n in bits(present) {
+            let (Some(Some(p)), Some(stats), Some(ch)) = (
+                patterns.get(n),
+                self.stats.get_mut(n),
+                self.channels.get_mut(n),
+            ) else {
+                continue;
+            };
+            let decoded = if same & (1 << n) != 0 {
+                ref_decoded
+            } else {
+                Frame::decode(*p)
+            };
             match decoded {
                 Ok(f) => {
                     stats.frames_ok = stats.frames_ok.wrapping_add(1);
+                    ch.failures = 0;
+                    ok |= 1 << n;
                     if let Some(v) = verified.get_mut(n) {
                         *v = Some(f);
                     }
@@ -364,16 +558,20 @@ impl HansRx {
                         channel: Some(number(n)),
                         kind: FaultKind::CheckFailed,
                     });
+                    ch.failures = ch.failures.saturating_add(1);
+                    // A channel that keeps failing is taken to be misaligned (a
+                    // delay measured on a glitch): it aligns again from scratch.
+                    if ch.failures >= RELOCK_AFTER && ch.unalign() {
+                        stats.resyncs = stats.resyncs.wrapping_add(1);
+                        sink(RxEvent::Fault {
+                            channel: Some(number(n)),
+                            kind: FaultKind::Resync,
+                        });
+                    }
                 }
             }
-            if relock {
-                stats.resyncs = stats.resyncs.wrapping_add(1);
-                sink(RxEvent::Fault {
-                    channel: Some(number(n)),
-                    kind: FaultKind::Resync,
-                });
-            }
         }
+        let all = same == self.used;
         let get = |c: u8| {
             usize::from(c)
                 .checked_sub(1)
@@ -387,13 +585,23 @@ impl HansRx {
                     sink(RxEvent::Frame(*f));
                 }
             }
+            // Every voter holding the reference's pattern: the majority is that
+            // pattern, already checked.
+            Mode::Vote3 { .. } | Mode::Vote5 if all => self.voted(ref_decoded, sink),
             Mode::Vote3 {
                 channels: [a, b, c],
             } => {
-                self.voted(majority3(get(a), get(b), get(c)), sink);
+                self.voted(Frame::decode(majority3(get(a), get(b), get(c))), sink);
             }
             Mode::Vote5 => {
-                self.voted(majority5([get(1), get(2), get(3), get(4), get(5)]), sink);
+                let v = majority5([get(1), get(2), get(3), get(4), get(5)]);
+                self.voted(Frame::decode(v), sink);
+            }
+            // Every verified channel holds the reference's frame: it is the majority.
+            Mode::Super if all => {
+                if let Ok(f) = ref_decoded {
+                    sink(RxEvent::Frame(f));
+                }
             }
             Mode::Super => match super_vote(&verified) {
                 SuperOutcome::Nothing => {}
@@ -417,11 +625,12 @@ impl HansRx {
                 }
             },
         }
+        ok
     }
 
-    /// Publishes a voted pattern if it passes every check.
-    fn voted(&mut self, pattern: u128, sink: &mut impl FnMut(RxEvent)) {
-        match Frame::decode(pattern) {
+    /// Publishes a voted pattern if it passed every check.
+    fn voted(&mut self, decoded: Result<Frame, DecodeError>, sink: &mut impl FnMut(RxEvent)) {
+        match decoded {
             Ok(f) => sink(RxEvent::Frame(f)),
             Err(_) => {
                 self.rejected = self.rejected.wrapping_add(1);
@@ -432,6 +641,160 @@ impl HansRx {
             }
         }
     }
+
+    /// Finds the next start edge on every aligned channel and moves the shared
+    /// timing and the delays on. `verified`: the channels whose frame just passed.
+    fn next(&mut self, verified: u8, same: u8, sink: &mut impl FnMut(RxEvent)) {
+        let pred = self.timing.predicted();
+        // Each channel's estimate of the shared start edge, as an error against the
+        // prediction. A channel that matched the reference centre for centre and
+        // whose delay has settled is certainly still aligned, so it is measured only
+        // every [`REMEASURE`]th frame, or when the reference's edge is missing or
+        // untrusted.
+        let mut errs = [0i32; CHANNELS];
+        self.frames = self.frames.wrapping_add(1);
+        let settled = bits(same & !(1 << self.reference))
+            .filter(|&n| self.channels.get(n).is_some_and(Channel::settled))
+            .fold(0u8, |m, n| m | 1 << n);
+        let skip = if self.frames.is_multiple_of(REMEASURE) {
+            0
+        } else {
+            settled
+        };
+        let mut found = self.edges(self.used & !skip, pred, &mut errs, sink);
+        if found & verified & (1 << self.reference) == 0 {
+            found |= self.edges(skip, pred, &mut errs, sink);
+        }
+        // Channels that just verified are trusted; the others only when none did.
+        // The upper median shrugs off a glitch on a minority of channels (a glitch
+        // before the real edge reads early).
+        let trusted = if found & verified != 0 {
+            found & verified
+        } else {
+            found
+        };
+        let mut picked = [0i32; CHANNELS];
+        let mut count = 0;
+        for n in bits(trusted) {
+            if let (Some(slot), Some(&e)) = (picked.get_mut(count), errs.get(n)) {
+                *slot = e;
+                count += 1;
+            }
+        }
+        let picked = picked.get_mut(..count).unwrap_or_default();
+        if count > 1 {
+            picked.sort_unstable();
+        }
+        let Some(&err) = picked.get(count / 2) else {
+            self.lose(sink);
+            return;
+        };
+        if !self.timing.advance(err) {
+            self.lose(sink);
+            return;
+        }
+        // Each delay follows its channel's deviation from the consensus only, so a
+        // lone channel's delay stays put and the shared filter alone smooths its
+        // jitter.
+        for n in bits(found) {
+            let (Some(ch), Some(stats), Some(&e)) =
+                (self.channels.get_mut(n), self.stats.get_mut(n), errs.get(n))
+            else {
+                continue;
+            };
+            let Some(d) = ch.delay else { continue };
+            if !ch.track(e.wrapping_add(d).wrapping_sub(err)) {
+                stats.resyncs = stats.resyncs.wrapping_add(1);
+                sink(RxEvent::Fault {
+                    channel: Some(number(n)),
+                    kind: FaultKind::Resync,
+                });
+            }
+        }
+        // Keep the reference while it verifies and has its edge; otherwise the first
+        // channel that does, or at least has an edge.
+        if trusted & (1 << self.reference) == 0 {
+            self.reference = trusted.trailing_zeros() as usize;
+        }
+        if verified == 0 {
+            self.dry = self.dry.saturating_add(1);
+            // A lock that yields nothing but failures is a false lock (on a data
+            // edge that happened to repeat a frame apart, or a rate far off).
+            if self.dry >= RELOCK_AFTER {
+                self.lose(sink);
+            }
+        } else {
+            self.dry = 0;
+        }
+    }
+
+    /// Searches the next start edge of the aligned channels of `mask` around their
+    /// predicted positions; stores each one's error against `pred` in `errs` and
+    /// returns those found. A channel without an edge loses its alignment.
+    fn edges(
+        &mut self,
+        mask: u8,
+        pred: u32,
+        errs: &mut [i32; CHANNELS],
+        sink: &mut impl FnMut(RxEvent),
+    ) -> u8 {
+        let ratio = self.timing.ratio;
+        let mut found = 0u8;
+        for n in bits(mask) {
+            let (Some(ch), Some(ring), Some(stats), Some(err)) = (
+                self.channels.get_mut(n),
+                self.rings.get(n),
+                self.stats.get_mut(n),
+                errs.get_mut(n),
+            ) else {
+                continue;
+            };
+            let Some(d) = ch.delay else { continue };
+            match Channel::edge(ring, pred.wrapping_add(d as u32), ratio) {
+                Some(e) => {
+                    *err = diff(e, pred).wrapping_sub(d);
+                    found |= 1 << n;
+                }
+                None => {
+                    ch.unalign();
+                    stats.resyncs = stats.resyncs.wrapping_add(1);
+                    sink(RxEvent::Fault {
+                        channel: Some(number(n)),
+                        kind: FaultKind::Resync,
+                    });
+                }
+            }
+        }
+        found
+    }
+
+    /// Gives up the shared timing: every aligned channel reports a resync, and the
+    /// hunt starts over from the next word.
+    fn lose(&mut self, sink: &mut impl FnMut(RxEvent)) {
+        self.locked = false;
+        self.pending = None;
+        self.dry = 0;
+        for (n, (ch, stats)) in self.channels.iter_mut().zip(&mut self.stats).enumerate() {
+            ch.reset_hunt();
+            if ch.unalign() {
+                stats.resyncs = stats.resyncs.wrapping_add(1);
+                sink(RxEvent::Fault {
+                    channel: Some(number(n)),
+                    kind: FaultKind::Resync,
+                });
+            }
+        }
+    }
+}
+
+/// The indices of the set bits of `mask`, lowest first.
+fn bits(mask: u8) -> impl Iterator<Item = usize> {
+    let mut m = mask;
+    core::iter::from_fn(move || {
+        let n = m.trailing_zeros() as usize;
+        m &= m.wrapping_sub(1);
+        (n < 8).then_some(n)
+    })
 }
 
 /// Channel number 1..=5 of channel index 0..=4.

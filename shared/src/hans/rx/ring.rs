@@ -1,0 +1,291 @@
+//! The receiver's copy of one channel's sample ring, and the word-level operations on
+//! it: finding a falling edge in a window, gathering the 125 bit-centre samples of a
+//! frame, and checking another channel against those centres.
+//!
+//! # Time base
+//! Positions are Q16 sample counts (16 fraction bits) in a wrapping `u32`: sample `s`
+//! of the stream is at `s << 16`, so a position wraps every 65 536 samples (4 096
+//! words). Every distance the receiver works with is far below half of that, so
+//! differences are taken with wrapping arithmetic and read as `i32`. Word `i` of the
+//! stream has its 16 samples from `i << 20`.
+//!
+//! # Windows
+//! Window `j` is the 32 samples from `32 j`, i.e. words `2j` and `2j + 1` (earlier word
+//! in the high half), so sample `32 j + b` is bit `31 - b` of it. The ring stores
+//! windows (slot `j % 32`), so every read is one load.
+
+use super::table::Table;
+use crate::hans::FRAME_BITS;
+
+/// Words kept per channel: 1 024 samples, twice the longest frame at 4x plus its
+/// search windows and skew, so a frame is always whole when it is decoded.
+pub const RING_WORDS: usize = 64;
+/// Fraction bits of the positions.
+pub const FRAC: u32 = 16;
+/// Half a sample (Q16).
+pub const HALF: u32 = 1 << (FRAC - 1);
+/// Most 32-sample windows a frame's centres can touch: 125 bits at 4.2 samples per
+/// bit (4x and 5 % off) are 525 samples, 17 windows, plus partial ones at both ends.
+pub const MAX_WINDOWS: usize = 20;
+
+/// `a - b` of two wrapping positions (or word counts), as a signed distance.
+pub const fn diff(a: u32, b: u32) -> i32 {
+    a.wrapping_sub(b) as i32
+}
+
+/// The top `n` bits (n <= 32).
+fn all_top(n: u32) -> u32 {
+    !u32::MAX.checked_shr(n).unwrap_or(0)
+}
+
+/// Bits appended left-aligned to four words.
+struct Acc {
+    words: [u32; 4],
+    full: usize,
+    cur: u32,
+    used: u32,
+}
+
+impl Acc {
+    /// Appends the top `n` bits of `bits` (the rest zero, n <= 12).
+    #[inline(always)]
+    fn push(&mut self, bits: u32, n: u32) {
+        self.cur |= bits >> self.used;
+        self.used += n;
+        if self.used >= 32 {
+            if let Some(w) = self.words.get_mut(self.full) {
+                *w = self.cur;
+            }
+            self.full += 1;
+            self.used -= 32;
+            // `used` < n here, so the shift is 1..=12.
+            self.cur = bits << (n - self.used);
+        }
+    }
+}
+
+/// One channel's samples, stored as windows: slot `j % 32` holds window `j` (words
+/// `2j` and `2j + 1`), so reading a window is one load.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub struct Ring {
+    windows: [u32; RING_WORDS / 2],
+}
+
+/// The centre samples of one frame on the reference channel, per window: which
+/// samples are bit centres and the reference's value there.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub struct Centres {
+    /// First window.
+    pub first: u32,
+    /// Windows used (at most [`MAX_WINDOWS`]).
+    pub count: usize,
+    /// Bit-centre masks of the windows.
+    pub masks: [u32; MAX_WINDOWS],
+    /// The reference's samples under the masks.
+    pub values: [u32; MAX_WINDOWS],
+}
+
+impl Default for Ring {
+    fn default() -> Self {
+        Ring {
+            windows: [0; RING_WORDS / 2],
+        }
+    }
+}
+
+impl Ring {
+    /// Stores `src` as stream words `at`, `at + 1`, ... (older words are
+    /// overwritten). Whole windows are written in one store.
+    pub fn write(&mut self, at: u32, src: &[u16]) {
+        let mut at = at;
+        let mut src = src;
+        if at & 1 == 1 {
+            if let Some((&w, rest)) = src.split_first() {
+                if let Some(slot) = self.slot_mut(at >> 1) {
+                    *slot = *slot & 0xFFFF_0000 | u32::from(w);
+                }
+                src = rest;
+                at = at.wrapping_add(1);
+            }
+        }
+        let mut pairs = src.chunks_exact(2);
+        for pair in &mut pairs {
+            if let (Some(slot), [a, b]) = (self.slot_mut(at >> 1), pair) {
+                *slot = u32::from(*a) << 16 | u32::from(*b);
+            }
+            at = at.wrapping_add(2);
+        }
+        if let (Some(&w), Some(slot)) = (pairs.remainder().first(), self.slot_mut(at >> 1)) {
+            *slot = *slot & 0xFFFF | u32::from(w) << 16;
+        }
+    }
+
+    fn slot_mut(&mut self, j: u32) -> Option<&mut u32> {
+        self.windows.get_mut(j as usize % (RING_WORDS / 2))
+    }
+
+    /// Stream word `i` and the one before it.
+    pub fn word_and_prev(&self, i: u32) -> (u32, u32) {
+        (self.word(i), self.word(i.wrapping_sub(1)))
+    }
+
+    /// Stream word `i`.
+    fn word(&self, i: u32) -> u32 {
+        let w = self.window(i >> 1);
+        if i & 1 == 0 {
+            w >> 16
+        } else {
+            w & 0xFFFF
+        }
+    }
+
+    /// Window `j` (32 samples from sample `32 j`).
+    #[inline(always)]
+    pub fn window(&self, j: u32) -> u32 {
+        self.windows
+            .get(j as usize % (RING_WORDS / 2))
+            .copied()
+            .unwrap_or(0)
+    }
+
+    /// The first falling edge (a low sample right after a high one) whose low sample
+    /// lies in `lo..=hi` (Q16 positions, rounded down to samples, at most 31 samples
+    /// apart). Returns the edge position, half a sample before that low sample.
+    pub fn first_fall(&self, lo: u32, hi: u32) -> Option<u32> {
+        // Samples are numbered modulo 65 536 (positions wrap). The 32 samples from the
+        // one before `lo` hold the whole range.
+        let s0 = (lo >> FRAC).wrapping_sub(1) & 0xFFFF;
+        let span = (hi >> FRAC).wrapping_sub(s0) & 0xFFFF;
+        if span == 0 || span > 31 {
+            return None;
+        }
+        let (j, off) = (s0 >> 5, s0 & 31);
+        let x = self.window(j) << off | (self.window(j.wrapping_add(1)) >> 1) >> (31 - off);
+        // Bit 31 - i of `falls`: sample s0 + i is low and the one before high.
+        let falls = !x & (x >> 1) & (u32::MAX << (31 - span));
+        if falls == 0 {
+            return None;
+        }
+        let s = (s0 + falls.leading_zeros()) & 0xFFFF;
+        Some((s << FRAC).wrapping_sub(HALF))
+    }
+
+    /// The 125 bit-centre samples of a frame whose first centre is at `first` (Q16,
+    /// plus half a sample so that truncation rounds), `ratio` (Q16) apart, gathered
+    /// window by window with `table` ([`super::table`]): the raw pattern (first bit
+    /// at bit 124). With `KEEP`, `centres` receives the masks and values the other
+    /// channels are checked against (a lone channel needs none).
+    #[inline(never)]
+    pub fn gather<const KEEP: bool>(
+        &self,
+        table: &mut Table,
+        first: u32,
+        ratio: u32,
+        centres: &mut Centres,
+    ) -> u128 {
+        let slots = core::hint::black_box(table.slots);
+        let mut j = first >> (FRAC + 5);
+        centres.first = j;
+        // The first window starts anywhere before the first centre: its entry is the
+        // one of the phase `skip` bit times earlier, minus those `skip` centres.
+        let phase = first.wrapping_sub(j << (FRAC + 5));
+        let skip = (phase / ratio.max(1)).min(12);
+        let e = table.entry(diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5)));
+        let x = self.window(j);
+        let mut all = e.all;
+        for _ in 0..skip {
+            all &= !0x8000_0000u32.checked_shr(all.leading_zeros()).unwrap_or(0);
+        }
+        let n = e.count.saturating_sub(skip);
+        let mut acc = Acc {
+            words: [0; 4],
+            full: 0,
+            cur: e.bits(x, slots) << skip,
+            used: n,
+        };
+        let mut left = FRAME_BITS as u32 - n;
+        let mut pos = first.wrapping_add(n.wrapping_mul(ratio));
+        if let (true, Some(m), Some(v)) =
+            (KEEP, centres.masks.first_mut(), centres.values.first_mut())
+        {
+            *m = all;
+            *v = x & all;
+        }
+        let mut k = 1;
+        // Whole windows: every centre is a frame bit.
+        while k < MAX_WINDOWS - 1 {
+            j = j.wrapping_add(1);
+            let e = table.entry(diff(pos, j << (FRAC + 5)));
+            let n = e.count;
+            if n >= left {
+                break;
+            }
+            let x = self.window(j);
+            acc.push(e.bits(x, slots), n);
+            if let (true, Some(m), Some(v)) =
+                (KEEP, centres.masks.get_mut(k), centres.values.get_mut(k))
+            {
+                *m = e.all;
+                *v = x & e.all;
+            }
+            pos = pos.wrapping_add(n.wrapping_mul(ratio));
+            left -= n;
+            k += 1;
+        }
+        // The last window: its first `left` centres.
+        let e = table.entry(diff(pos, j << (FRAC + 5)));
+        let x = self.window(j);
+        let mut all = e.all;
+        for _ in left.min(e.count)..e.count {
+            all &= all.wrapping_sub(1);
+        }
+        acc.push(e.bits(x, slots) & all_top(left), left.min(e.count));
+        if let (true, Some(m), Some(v)) =
+            (KEEP, centres.masks.get_mut(k), centres.values.get_mut(k))
+        {
+            *m = all;
+            *v = x & all;
+        }
+        centres.count = k + 1;
+        let [a, b, c, _] = acc.words;
+        (u128::from(a) << 96 | u128::from(b) << 64 | u128::from(c) << 32 | u128::from(acc.cur)) >> 3
+    }
+
+    /// True when this channel, `d` samples later than the reference (at most ±31),
+    /// has the reference's value at every centre of `centres`.
+    #[inline(never)]
+    pub fn agrees(&self, centres: &Centres, d: i32) -> bool {
+        let mut bad = 0u32;
+        let mut j = centres.first;
+        let windows = centres
+            .masks
+            .iter()
+            .zip(&centres.values)
+            .take(centres.count);
+        if d > 0 {
+            let (l, r) = (d as u32 & 31, 31 - (d as u32 & 31));
+            let mut here = self.window(j);
+            for (m, v) in windows {
+                j = j.wrapping_add(1);
+                let next = self.window(j);
+                bad |= ((here << l | (next >> 1) >> r) & m) ^ v;
+                here = next;
+            }
+        } else if d < 0 {
+            let (l, r) = (31 - (d.unsigned_abs() & 31), d.unsigned_abs() & 31);
+            let mut prev = self.window(j.wrapping_sub(1));
+            for (m, v) in windows {
+                let here = self.window(j);
+                bad |= ((((prev << 1) << l) | here >> r) & m) ^ v;
+                prev = here;
+                j = j.wrapping_add(1);
+            }
+        } else {
+            for (m, v) in windows {
+                bad |= (self.window(j) & m) ^ v;
+                j = j.wrapping_add(1);
+            }
+        }
+        bad == 0
+    }
+}

@@ -1,0 +1,108 @@
+//! The frame timing shared by all channels: where the current frame starts and how
+//! long a frame (and so a bit) is, in samples.
+//!
+//! The five channels come from one sender clock, so one clock recovery serves them
+//! all; each channel only adds its own delay ([`super::channel`]). The bit rate is
+//! first measured over one whole frame (two start edges), then every frame's start
+//! edge corrects phase and rate with an alpha-beta filter whose gains start as a
+//! least-squares line fit over the frames seen so far and settle at a fit over about
+//! 128 frames: a jittery edge moves the estimate very little while a ±1 % (or larger)
+//! rate offset is tracked exactly.
+
+use super::ring::{diff, FRAC};
+use crate::hans::FRAME_BITS;
+
+/// Frames after which the alpha-beta gains stop shrinking.
+const FIT_FRAMES: i32 = 128;
+/// Bits in a frame as the fixed-point multiplier.
+const BITS: i32 = FRAME_BITS as i32;
+
+/// Shared clock recovery.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub struct Timing {
+    /// Nominal samples per bit (Q16).
+    nominal: i32,
+    /// Shortest and longest plausible frame period (Q16): the nominal ±5 %.
+    pub bounds: (i32, i32),
+    /// Tracked samples per bit (Q16).
+    pub ratio: i32,
+    /// Tracked frame period (Q16 samples).
+    pub period: i32,
+    /// Start edge of the current frame (Q16 position, see [`super::ring`]).
+    pub start: u32,
+    /// Measurements in the current lock (selects the gains).
+    pub(super) fits: i32,
+}
+
+impl Timing {
+    /// Timing for `ratio_q16` nominal samples per bit.
+    pub const fn new(ratio_q16: i32) -> Timing {
+        let period = ratio_q16 as i64 * BITS as i64;
+        Timing {
+            nominal: ratio_q16,
+            bounds: (clamp_i32(period * 95 / 100), clamp_i32(period * 105 / 100)),
+            ratio: ratio_q16,
+            period: ratio_q16.saturating_mul(BITS),
+            start: 0,
+            fits: 0,
+        }
+    }
+
+    /// Shortest run of ones (samples) that can only be the stop field: 2.5 bit times,
+    /// rounded (data runs are at most 2 bit times).
+    pub fn hunt_threshold(&self) -> u32 {
+        ((self.nominal as u32).saturating_mul(5) + (1 << FRAC)) >> (FRAC + 1)
+    }
+
+    /// Starts tracking: two start edges one `period` apart, the later at `start`.
+    pub fn lock(&mut self, start: u32, period: i32) {
+        self.fits = 2;
+        self.set(start, period);
+    }
+
+    fn set(&mut self, start: u32, period: i32) {
+        self.start = start;
+        self.period = period;
+        self.ratio = period / BITS;
+    }
+
+    /// The next frame's start edge as predicted.
+    pub fn predicted(&self) -> u32 {
+        self.start.wrapping_add(self.period as u32)
+    }
+
+    /// Moves to the next frame, whose start edge was measured `err` (Q16) after the
+    /// prediction. Returns false when the corrected period is implausible (the lock
+    /// is then worthless).
+    pub fn advance(&mut self, err: i32) -> bool {
+        // Gains of a least-squares line fit over the last k start edges (k capped at
+        // FIT_FRAMES): phase 2(2k-1)/(k(k+1)), period 6/(k(k+1)). The search window
+        // bounds the error to about ±2 bits (< 2^20 in Q16), so the products stay far
+        // inside i32 and the divisions are single instructions on the M7.
+        let err = err.clamp(-(1 << 21), 1 << 21);
+        self.fits = (self.fits + 1).min(FIT_FRAMES);
+        let k = self.fits;
+        let start = self
+            .predicted()
+            .wrapping_add((err * 2 * (2 * k - 1) / (k * (k + 1))) as u32);
+        let period = self.period.saturating_add(err * 6 / (k * (k + 1)));
+        self.set(start, period);
+        (self.bounds.0..=self.bounds.1).contains(&period)
+    }
+
+    /// Offset of position `p` from the current start edge.
+    pub fn since_start(&self, p: u32) -> i32 {
+        diff(p, self.start)
+    }
+}
+
+/// `v` saturated to `i32`.
+const fn clamp_i32(v: i64) -> i32 {
+    if v > i32::MAX as i64 {
+        i32::MAX
+    } else if v < i32::MIN as i64 {
+        i32::MIN
+    } else {
+        v as i32
+    }
+}
