@@ -180,7 +180,12 @@ pub struct Xy3InRes {
     pub y: SpiLineRes<SPI4, PE12, PE14, PE11, DMA1_CH1>,
     /// Z: SPI5 (SCK PF7, MOSI PF9 = pair 5, NSS PF6; AF5) on DMA1 stream 2.
     pub z: SpiLineRes<SPI5, PF7, PF9, PF6, DMA1_CH2>,
-    /// SYNC again, as an EXTI input.
+    /// U: SPI1 (SCK PA5, MOSI PB5 = pair 7, NSS PG10; AF5) on DMA1 stream 3. NSS is
+    /// PG10, not SPI1's other NSS pin PA4: PA4 is the SYNC EXTI input below.
+    pub u: SpiLineRes<SPI1, PA5, PB5, PG10, DMA1_CH3>,
+    /// W: SPI2 (SCK PB10, MOSI PB15 = pair 8, NSS PB12; AF5) on DMA1 stream 4.
+    pub w: SpiLineRes<SPI2, PB10, PB15, PB12, DMA1_CH4>,
+    /// SYNC again, as an EXTI input (EXTI4).
     pub sync: Peri<'static, PA4>,
     /// EXTI line 4.
     pub exti: Peri<'static, EXTI4>,
@@ -347,6 +352,20 @@ pub fn init() -> Board {
                     mosi: p.PF9,
                     nss: p.PF6,
                     dma: p.DMA1_CH2,
+                },
+                u: SpiLineRes {
+                    spi: p.SPI1,
+                    sck: p.PA5,
+                    mosi: p.PB5,
+                    nss: p.PG10,
+                    dma: p.DMA1_CH3,
+                },
+                w: SpiLineRes {
+                    spi: p.SPI2,
+                    sck: p.PB10,
+                    mosi: p.PB15,
+                    nss: p.PB12,
+                    dma: p.DMA1_CH4,
                 },
                 sync: p.PA4,
                 exti: p.EXTI4,

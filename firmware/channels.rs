@@ -64,8 +64,9 @@ pub const XY2_HALF: usize = 512;
 /// 100 kHz): half of `shared::xy3::rx::WINDOW`, the most the receiver may be fed
 /// between two polls.
 pub const XY3_HALF: usize = shared::xy3::rx::WINDOW / 2;
-/// XY3-100 data lines this board receives: X (SPI3), Y (SPI4), Z (SPI5).
-pub const XY3_LINES: usize = 3;
+/// XY3-100 data lines this board can receive: X (SPI3), Y (SPI4), Z (SPI5), U (SPI1),
+/// W (SPI2); which of them run: `Config::xy3_input_lines`.
+pub const XY3_LINES: usize = 5;
 /// Frame-end marks carried with one XY3 half: as many as the receiver lets wait
 /// (a half holds at most 21 frame ends; later ones stay queued for the next half).
 pub const XY3_MARKS: usize = shared::xy3::rx::MAX_PENDING_ENDS;
@@ -76,8 +77,8 @@ pub const HANS_HALF: usize = 512;
 /// The bridge (`tasks::line::bridge_wave_out`) runs the XY2 receiver on it.
 pub type RawInput = [u16; XY2_HALF];
 
-/// One DMA half of each XY3-100 data line (the configured ones first, in axis order;
-/// `layouts.md` §2) and the frame-end marks drained with it.
+/// One DMA half of each received XY3-100 data line (`layouts.md` §2) and the
+/// frame-end marks drained with it.
 #[derive(Clone)]
 pub struct Xy3Raw {
     /// Reception session: the input restarts every line together (clock gated) after
@@ -85,7 +86,8 @@ pub struct Xy3Raw {
     pub session: u32,
     /// X ring byte count of `bytes[..][0]` within the session.
     pub first_byte: u32,
-    /// `XY3_HALF` bytes per line.
+    /// `XY3_HALF` bytes per line, indexed by `Axis::index` (X..W); lines not
+    /// received stay zero and are not read.
     pub bytes: [[u8; XY3_HALF]; XY3_LINES],
     /// Frame-end positions (X byte counts within the session) drained with this half.
     pub ends: heapless::Vec<u32, XY3_MARKS>,

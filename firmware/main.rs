@@ -26,7 +26,7 @@ use {defmt_rtt as _, panic_probe as _};
 
 use config::{Controller, Head, Roles};
 use drivers::backchannel::{self, Backchannel};
-use shared::bridge::{StatusForm, ZSource};
+use shared::bridge::StatusForm;
 use tasks::{bridge, bridge_hans, line, status};
 
 /// Runs the line tasks at interrupt priority. UART8 is unused on this board, so its
@@ -124,9 +124,12 @@ async fn main(spawner: Spawner) {
                 .map(|rx| Backchannel::receive_only(rx, tasks::back_ring()))
         }
         Controller::Xy3 => {
-            // Z is received only when the bridge takes Z from the input.
-            let with_z = config.z.source == ZSource::Input;
-            high.spawn(line::xy3_in(r.xy3_in, with_z).unwrap());
+            // The lines the controller drives that the bridge uses
+            // (`controller.xy3.lines`; Z only with `z.source = "input"`, U / W only
+            // for an XY3-100 head): an unconnected line would fail every period.
+            let lines = config.xy3_input_lines();
+            defmt::info!("xy3 in: lines {}", lines);
+            high.spawn(line::xy3_in(r.xy3_in, lines).unwrap());
             let b = r.back;
             Uart::new_with_de(
                 b.uart,

@@ -10,7 +10,7 @@ use core::sync::atomic::Ordering;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::watch::AnonReceiver;
 use shared::bridge::{Bridge, Config, LinkState, Output, StatusForm, Timing, ZSource};
-use shared::model::{FaultKind, ForwardFrame, HeadStatus, Line, LineEvent};
+use shared::model::{Axis, FaultKind, ForwardFrame, HeadStatus, Line, LineEvent};
 use shared::xy3::back::SEND_BUF_LEN;
 use shared::xy3::BackRate;
 use shared::{xy2, xy3};
@@ -66,13 +66,9 @@ struct Xy3Decoder {
 
 impl Xy3Decoder {
     fn new(config: &Config) -> Self {
-        // X and Y always; Z only when the bridge takes Z from the input (an
-        // unconnected Z line would read dead and fail every period).
-        let lines = if config.z.source == ZSource::Input {
-            xy3::rx::Lines::XYZ
-        } else {
-            xy3::rx::Lines::XY
-        };
+        // The lines the input task receives (`controller.xy3.lines` that the bridge
+        // uses): an unconnected line would read dead and fail every period.
+        let lines = config.xy3_input_lines();
         Xy3Decoder {
             rx: xy3::rx::Receiver::new(lines),
             lines,
@@ -97,9 +93,16 @@ impl Xy3Decoder {
             self.session = Some(raw.session);
         }
         self.next_byte = raw.first_byte.wrapping_add(XY3_HALF as u32);
-        let [x, y, z] = &raw.bytes;
-        let all: [&[u8]; XY3_LINES] = [x, y, z];
-        let lines = all.get(..self.lines.count()).unwrap_or_default();
+        // The received lines in axis order, as `push_bytes` takes them.
+        let mut lines: [&[u8]; XY3_LINES] = [&[]; XY3_LINES];
+        let received = Axis::ALL
+            .iter()
+            .zip(&raw.bytes)
+            .filter(|(a, _)| self.lines.has(**a));
+        for (slot, (_, bytes)) in lines.iter_mut().zip(received) {
+            *slot = bytes;
+        }
+        let lines = lines.get(..self.lines.count()).unwrap_or_default();
         if let Err(e) = self.rx.push_bytes(lines) {
             // Not reachable (one equal-length slice per configured line), but never
             // silent: the bytes are not taken.

@@ -19,13 +19,18 @@ use crate::channels::{
     RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_RAW, RAW_INPUT, STATS, XY2_HALF, XY3_HALF,
     XY3_INPUT, XY3_LINES, XY3_MARKS,
 };
-use crate::drivers::spi_slave_rx::{RxError, SpiSlaveRx};
+use crate::drivers::spi_slave_rx::{Instance, RxError, SpiSlaveRx};
 use crate::drivers::sync_marks::SyncMarks;
 use crate::drivers::xy2_sampler::Xy2Sampler;
+use embassy_stm32::dma;
+use embassy_stm32::interrupt::typelevel::Binding;
 use embassy_stm32::peripherals::{
-    DMA1_CH0, DMA1_CH1, DMA1_CH2, EXTI4, PA15, PA4, PC10, PC12, PE11, PE12, PE14, PF6, PF7, PF9,
-    SPI3, SPI4, SPI5,
+    DMA1_CH0, DMA1_CH1, DMA1_CH2, DMA1_CH3, DMA1_CH4, EXTI4, PA15, PA4, PA5, PB10, PB12, PB15, PB5,
+    PC10, PC12, PE11, PE12, PE14, PF6, PF7, PF9, PG10, SPI1, SPI2, SPI3, SPI4, SPI5,
 };
+use embassy_stm32::spi::{CsPin, MosiPin, RxDma, SckPin};
+use shared::model::Axis;
+use shared::xy3::rx::Lines;
 use xy_bridge::dma_ring;
 
 /// Hands an XY2 half to the bridge without waiting: a full queue means the bridge is
@@ -55,11 +60,13 @@ pub async fn xy2_in(r: Xy2InRes) {
     }
 }
 
-/// XY3-100 input (controller side): SPI3 (X), SPI4 (Y) and, with `with_z`, SPI5 (Z)
-/// receive their lines as SPI slaves clocked by the controller's CLK (shared SCK bus)
-/// and selected by SYNC; EXTI4 marks every SYNC rising edge with the X ring position.
-/// Each DMA half of every line, with the marks drained alongside, goes to the bridge
-/// ([`XY3_INPUT`]), which runs `shared::xy3::rx::Receiver` on it.
+/// XY3-100 input (controller side): one SPI slave per received data line (`lines`:
+/// X on SPI3, Y on SPI4, Z on SPI5, U on SPI1, W on SPI2), clocked by the
+/// controller's CLK (shared SCK bus) and selected by SYNC; EXTI4 marks every SYNC
+/// rising edge with the X ring position. Each DMA half of every line, with the marks
+/// drained alongside, goes to the bridge ([`XY3_INPUT`]), which runs
+/// `shared::xy3::rx::Receiver` on it. Lines not in `lines` stay off: an unconnected
+/// line would read dead and fail every period.
 ///
 /// The receiver needs byte `i` of every line to come from the same clock edges, so
 /// all SPIs must start counting together: each session starts them with the SCK-bus
@@ -67,26 +74,36 @@ pub async fn xy2_in(r: Xy2InRes) {
 /// overrun on any line ends the session (its lines are no longer in step) and a new
 /// one starts the same way; the bridge restarts its receiver on the new session.
 #[embassy_executor::task]
-pub async fn xy3_in(r: Xy3InRes, with_z: bool) {
+pub async fn xy3_in(r: Xy3InRes, lines: Lines) {
     let mut r = r;
     let mut sck_bus = Output::new(r.sck_buffer_oe.reborrow(), Level::High, Speed::Low);
     let x_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
     let y_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
     let z_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
+    let u_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
+    let w_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
     let mut session = 0u32;
     loop {
         // Gate the clock (the last session's SPIs are off by now), so the new ones
         // start together.
         sck_bus.set_high();
-        let rings = [&mut x_ring[..], &mut y_ring[..], &mut z_ring[..]];
-        let lines = Xy3Lines {
+        let rings = [
+            &mut x_ring[..],
+            &mut y_ring[..],
+            &mut z_ring[..],
+            &mut u_ring[..],
+            &mut w_ring[..],
+        ];
+        let res = Xy3Lines {
             x: &mut r.x,
             y: &mut r.y,
-            z: with_z.then_some(&mut r.z),
+            z: &mut r.z,
+            u: &mut r.u,
+            w: &mut r.w,
             sync: &mut r.sync,
             exti: &mut r.exti,
         };
-        if let Err(e) = xy3_session(lines, rings, session, &mut sck_bus).await {
+        if let Err(e) = xy3_session(res, lines, rings, session, &mut sck_bus).await {
             defmt::warn!("xy3 in: {}; restarting all lines together", e);
             Stats::bump(&STATS.input_overruns);
             // A failure that repeats at once must not spin the high-priority
@@ -102,52 +119,60 @@ pub async fn xy3_in(r: Xy3InRes, with_z: bool) {
 struct Xy3Lines<'a> {
     x: &'a mut SpiLineRes<SPI3, PC10, PC12, PA15, DMA1_CH0>,
     y: &'a mut SpiLineRes<SPI4, PE12, PE14, PE11, DMA1_CH1>,
-    z: Option<&'a mut SpiLineRes<SPI5, PF7, PF9, PF6, DMA1_CH2>>,
+    z: &'a mut SpiLineRes<SPI5, PF7, PF9, PF6, DMA1_CH2>,
+    u: &'a mut SpiLineRes<SPI1, PA5, PB5, PG10, DMA1_CH3>,
+    w: &'a mut SpiLineRes<SPI2, PB10, PB15, PB12, DMA1_CH4>,
     sync: &'a mut Peri<'static, PA4>,
     exti: &'a mut Peri<'static, EXTI4>,
+}
+
+/// Starts one data line's SPI slave into `ring`, if `on`.
+fn start_line<'a, T, K, M, N, D>(
+    on: bool,
+    l: &'a mut SpiLineRes<T, K, M, N, D>,
+    ring: &'a mut [u8],
+) -> Result<Option<SpiSlaveRx<'a, u8>>, RxError>
+where
+    T: Instance,
+    K: SckPin<T>,
+    M: MosiPin<T>,
+    N: CsPin<T>,
+    D: RxDma<T>,
+    Irqs: Binding<D::Interrupt, dma::InterruptHandler<D>>,
+{
+    if !on {
+        return Ok(None);
+    }
+    let rx = SpiSlaveRx::new(
+        l.spi.reborrow(),
+        l.sck.reborrow(),
+        l.mosi.reborrow(),
+        Some(l.nss.reborrow()),
+        l.dma.reborrow(),
+        Irqs,
+        ring,
+    )?;
+    Ok(Some(rx))
 }
 
 /// One reception session of [`xy3_in`]: returns when a line fails (never otherwise).
 async fn xy3_session(
     r: Xy3Lines<'_>,
-    rings: [&mut [u8]; 3],
+    lines: Lines,
+    rings: [&mut [u8]; XY3_LINES],
     session: u32,
     sck_bus: &mut Output<'_>,
 ) -> Result<(), RxError> {
-    let [x_ring, y_ring, z_ring] = rings;
+    let [x_ring, y_ring, z_ring, u_ring, w_ring] = rings;
     let ring_len = x_ring.len() as u16;
-    let l = r.x;
-    let mut x = SpiSlaveRx::new(
-        l.spi.reborrow(),
-        l.sck.reborrow(),
-        l.mosi.reborrow(),
-        Some(l.nss.reborrow()),
-        l.dma.reborrow(),
-        Irqs,
-        x_ring,
-    )?;
-    let l = r.y;
-    let mut y = SpiSlaveRx::new(
-        l.spi.reborrow(),
-        l.sck.reborrow(),
-        l.mosi.reborrow(),
-        Some(l.nss.reborrow()),
-        l.dma.reborrow(),
-        Irqs,
-        y_ring,
-    )?;
-    let mut z = match r.z {
-        Some(l) => Some(SpiSlaveRx::new(
-            l.spi.reborrow(),
-            l.sck.reborrow(),
-            l.mosi.reborrow(),
-            Some(l.nss.reborrow()),
-            l.dma.reborrow(),
-            Irqs,
-            z_ring,
-        )?),
-        None => None,
-    };
+    // Indexed by `Axis::index`, like `Xy3Raw::bytes`. X is in every set.
+    let mut rx = [
+        start_line(true, r.x, x_ring)?,
+        start_line(lines.has(Axis::Y), r.y, y_ring)?,
+        start_line(lines.has(Axis::Z), r.z, z_ring)?,
+        start_line(lines.has(Axis::U), r.u, u_ring)?,
+        start_line(lines.has(Axis::W), r.w, w_ring)?,
+    ];
     let mut marks = SyncMarks::new(r.sync.reborrow(), r.exti.reborrow(), Irqs, ring_len);
     // Every line is ready: let the clock in.
     sck_bus.set_low();
@@ -159,11 +184,10 @@ async fn xy3_session(
     };
     let mut ends = [0u32; XY3_MARKS];
     loop {
-        let [bx, by, bz] = &mut raw.bytes;
-        x.read_exact(bx).await?;
-        y.read_exact(by).await?;
-        if let Some(z) = z.as_mut() {
-            z.read_exact(bz).await?;
+        for (line, bytes) in rx.iter_mut().zip(raw.bytes.iter_mut()) {
+            if let Some(line) = line {
+                line.read_exact(bytes).await?;
+            }
         }
         let n = marks.drain(&mut ends);
         raw.ends.clear();

@@ -30,6 +30,8 @@ bind_interrupts!(
         DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
         DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
         DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
+        DMA1_STREAM3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
+        DMA1_STREAM4 => dma::InterruptHandler<peripherals::DMA1_CH4>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;

@@ -59,6 +59,7 @@ fn file_values_reach_the_types() {
         protocol = "hans"
         hans.decode = { vote3 = [1, 3, 5] }
         xy3.back_rate = 921600
+        xy3.lines = ["w", "x", "y"]
         [head]
         protocol = "xy2"
         xy2 = { mode = "extended18", enhanced_commands = false, parity = "data_only", status = "word", polarity = "high_is_ok" }
@@ -76,6 +77,13 @@ fn file_values_reach_the_types() {
         shared::bridge::HansDecode::Vote3([1, 3, 5])
     );
     assert_eq!(cfg.controller.xy3.back_rate, xy3::BackRate::B921600);
+    assert_eq!(
+        cfg.controller.xy3.lines,
+        xy3::rx::Lines::new(&[Axis::X, Axis::Y, Axis::W]).unwrap()
+    );
+    // Written back in axis order.
+    let text = toml::to_string(&cfg).unwrap();
+    assert!(text.contains("lines = [\"x\", \"y\", \"w\"]"), "{text}");
     assert_eq!(cfg.head.xy2.mode, Mode::Extended18);
     assert_eq!(cfg.head.xy2.parity, Parity::DataOnly);
     assert_eq!(cfg.head.xy2.status, StatusForm::Word);
@@ -112,10 +120,20 @@ fn bad_files_name_the_key() {
         ("[controller.xy2]\nparity = \"odd\"", "parity"),
         ("[failsafe]\ninput_timeout_us = -1", "input_timeout_us"),
         ("[controller.hans]\ndecode = { vote7 = 1 }", "decode"),
+        ("[controller.xy3]\nlines = [\"x\", \"y\", \"v\"]", "unknown variant `v`"),
+        ("[controller.xy3]\nlines = [\"x\", \"y\", \"x\"]", "a line listed twice"),
+        ("[controller.xy3]\nlines = [\"x\", \"z\"]", "without \"x\" or \"y\""),
+        ("[controller.xy3]\nlines = [\"y\"]", "without \"x\" or \"y\""),
+        ("[controller.xy3]\nlines = []", "without \"x\" or \"y\""),
+        ("[controller.xy3]\nlines = \"xyz\"", "expected a list of distinct XY3-100 lines"),
     ];
     for (text, key) in cases {
         let err = toml::from_str::<Config>(text).unwrap_err().to_string();
         assert!(err.contains(key), "{text:?}: {err}");
+        // toml shows the offending line, so a bad value's key is named too.
+        if text.contains("lines") {
+            assert!(err.contains("lines = "), "{text:?}: {err}");
+        }
     }
     // Well-formed files with invalid combinations: validate() names the key.
     #[rustfmt::skip]
@@ -126,6 +144,7 @@ fn bad_files_name_the_key() {
         ("[controller]\nprotocol = \"hans\"\nhans.decode = { normal = 6 }", "controller.hans.decode"),
         ("[controller]\nprotocol = \"hans\"\nhans.decode = { vote3 = [2, 2, 3] }", "controller.hans.decode"),
         ("[failsafe]\npark_x = 0x100000", "failsafe.park_x"),
+        ("[controller]\nprotocol = \"xy3\"\nxy3.lines = [\"x\", \"y\", \"u\"]", "controller.xy3.lines"),
     ];
     for (text, key) in invalid {
         let cfg: Config = toml::from_str(text).unwrap();

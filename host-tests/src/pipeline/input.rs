@@ -28,16 +28,6 @@ pub(super) fn hans_mode(decode: HansDecode) -> hans::rx::Mode {
     }
 }
 
-/// The XY3-100 lines received: X, Y, and Z when the bridge takes Z from the input
-/// (as the XY2 input in the firmware: an unconnected Z would fail every period).
-pub(super) fn xy3_lines(config: &Config) -> xy3::rx::Lines {
-    if config.z.source == ZSource::Input {
-        xy3::rx::Lines::XYZ
-    } else {
-        xy3::rx::Lines::XY
-    }
-}
-
 impl Input {
     pub fn new(config: &Config, options: &Options) -> Result<Input, PipelineError> {
         let c = &config.controller;
@@ -59,7 +49,10 @@ impl Input {
                     .map_err(|e| PipelineError::Setup(e.to_string()))?;
                 Input::Xy2(rx)
             }
-            Protocol::Xy3 => Input::Xy3(Box::new(xy3::rx::Receiver::new(xy3_lines(config)))),
+            Protocol::Xy3 => {
+                // As the firmware: the configured lines the bridge uses.
+                Input::Xy3(Box::new(xy3::rx::Receiver::new(config.xy3_input_lines())))
+            }
             Protocol::Hans => {
                 let rx = hans::rx::HansRx::new(options.hans_sample_hz, hans_mode(c.hans.decode))
                     .map_err(|e| PipelineError::Setup(e.to_string()))?;

@@ -185,9 +185,9 @@ fn pipeline_err(e: crate::pipeline::PipelineError) -> SimError {
     SimError::Bridge(e.to_string())
 }
 
-/// The controller's data lines the firmware's receiver takes (Z only when the bridge
-/// takes Z from the input: an unwired Z line would fail every frame).
-fn controller_lines(config: &Config) -> &'static [Axis] {
+/// The XY2-100 controller's data lines the firmware's receiver takes (Z only when the
+/// bridge takes Z from the input: an unwired Z line would fail every frame).
+fn xy2_controller_lines(config: &Config) -> &'static [Axis] {
     if config.z.source == ZSource::Input {
         &[Axis::X, Axis::Y, Axis::Z]
     } else {
@@ -212,7 +212,7 @@ fn controller_steps(run: &BridgeRun<'_>) -> Result<Read<CtrlData>, SimError> {
     let mut steps = Vec::new();
     match c.controller.protocol {
         Protocol::Xy2 => {
-            let input = capture::xy2(run.input, run.map, Lines::Exactly(controller_lines(c)))?;
+            let input = capture::xy2(run.input, run.map, Lines::Exactly(xy2_controller_lines(c)))?;
             let sync = 1u16 << input.pins.sync;
             let mut from = 0;
             for (i, w) in input.words.iter().enumerate() {
@@ -236,7 +236,9 @@ fn controller_steps(run: &BridgeRun<'_>) -> Result<Read<CtrlData>, SimError> {
             })
         }
         Protocol::Xy3 => {
-            let input = capture::xy3(run.input, run.map, Lines::Exactly(controller_lines(c)))?;
+            // The lines the bridge's XY3-100 receiver takes (`controller.xy3.lines`).
+            let axes: Vec<Axis> = c.xy3_input_lines().axes().collect();
+            let input = capture::xy3(run.input, run.map, Lines::Exactly(&axes))?;
             let spi = &input.spi;
             let total = spi.bytes.first().map_or(0, Vec::len);
             let mut from = 0usize;

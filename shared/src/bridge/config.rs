@@ -18,7 +18,9 @@
 //!   must be re-entered when the head protocol or width changes.
 //! - Times are microseconds, rates hertz.
 
+use crate::model::Axis;
 use crate::xy2::{Mode, Parity, Polarity};
+use crate::xy3::rx::Lines;
 use crate::xy3::{BackRate, FrameSize};
 
 /// The three protocols the bridge speaks.
@@ -104,7 +106,7 @@ pub struct Xy2Controller {
 }
 
 /// Controller-side XY3-100 options.
-#[derive(Clone, Copy, PartialEq, Eq, Debug, Default, Hash)]
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[cfg_attr(
     feature = "serde",
@@ -115,6 +117,21 @@ pub struct Xy3Controller {
     /// The backchannel rate at power-up (in the file: the baud rate as a number).
     #[cfg_attr(feature = "serde", serde(with = "super::serde_impl::back_rate"))]
     pub back_rate: BackRate,
+    /// The data lines the controller drives (in the file: a list of `"x"`, `"y"`,
+    /// `"z"`, `"u"`, `"w"`; X and Y required). Which of them the bridge receives:
+    /// [`Config::xy3_input_lines`]. Default X, Y, Z: what the bridge received before
+    /// this key existed (Z only with `z.source = "input"`).
+    #[cfg_attr(feature = "serde", serde(with = "super::serde_impl::xy3_lines"))]
+    pub lines: Lines,
+}
+
+impl Default for Xy3Controller {
+    fn default() -> Self {
+        Xy3Controller {
+            back_rate: BackRate::default(),
+            lines: Lines::XYZ,
+        }
+    }
 }
 
 /// Controller-side HANS-100 options.
@@ -468,6 +485,24 @@ pub struct Config {
     pub failsafe: FailSafe,
     /// Laser-control handling.
     pub laser: LaserConfig,
+}
+
+impl Config {
+    /// The XY3-100 data lines the bridge receives from the controller: of the lines
+    /// it drives (`controller.xy3.lines`), those whose data the bridge uses. Z only
+    /// with `z.source = "input"`; U and W only for an XY3-100 head, the only one that
+    /// carries them. A line received but never used could only stop frames (a period
+    /// is forwarded only if every received line decodes).
+    pub const fn xy3_input_lines(&self) -> Lines {
+        let mut lines = self.controller.xy3.lines;
+        if !matches!(self.z.source, ZSource::Input) {
+            lines = lines.without(Axis::Z);
+        }
+        if !matches!(self.head.protocol, Protocol::Xy3) {
+            lines = lines.without(Axis::U).without(Axis::W);
+        }
+        lines
+    }
 }
 
 /// Centre of the field in 20-bit offset binary.

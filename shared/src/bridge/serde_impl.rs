@@ -5,7 +5,9 @@
 use serde::de::{Error, Unexpected};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
+use crate::model::Axis;
 use crate::xy2::{Mode, Parity, Polarity};
+use crate::xy3::rx::Lines;
 use crate::xy3::{BackRate, FrameSize};
 
 /// File form of [`Mode`]: `"standard16"` or `"extended18"`.
@@ -83,6 +85,79 @@ pub mod frame_bits {
                 Unexpected::Unsigned(n.into()),
                 &"24 or 32",
             )),
+        }
+    }
+}
+
+/// File form of one XY3-100 data line: `"x"`, `"y"`, `"z"`, `"u"` or `"w"`.
+#[derive(Serialize, Deserialize)]
+#[serde(remote = "Axis", rename_all = "snake_case")]
+enum AxisDef {
+    X,
+    Y,
+    Z,
+    U,
+    W,
+}
+
+/// [`Axis`] through [`AxisDef`], as a list element.
+#[derive(Serialize, Deserialize)]
+struct AxisName(#[serde(with = "AxisDef")] Axis);
+
+/// [`Lines`] as the list of its axes (`lines = ["x", "y", "z"]`).
+pub mod xy3_lines {
+    use core::fmt;
+
+    use serde::de::{SeqAccess, Visitor};
+    use serde::ser::SerializeSeq;
+
+    use super::*;
+
+    /// Writes the lines in axis order.
+    pub fn serialize<S: Serializer>(lines: &Lines, s: S) -> Result<S::Ok, S::Error> {
+        let mut seq = s.serialize_seq(Some(lines.count()))?;
+        for axis in lines.axes() {
+            seq.serialize_element(&AxisName(axis))?;
+        }
+        seq.end()
+    }
+
+    /// Reads a list of line names, each at most once, in any order; "x" and "y"
+    /// must be among them.
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Lines, D::Error> {
+        d.deserialize_seq(LinesVisitor)
+    }
+
+    struct LinesVisitor;
+
+    const EXPECTED: &str = "a list of distinct XY3-100 lines (\"x\", \"y\", \"z\", \"u\", \"w\") \
+                            with \"x\" and \"y\"";
+
+    impl<'de> Visitor<'de> for LinesVisitor {
+        type Value = Lines;
+
+        fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            f.write_str(EXPECTED)
+        }
+
+        fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Lines, A::Error> {
+            let mut axes = heapless::Vec::<Axis, 5>::new();
+            while let Some(AxisName(axis)) = seq.next_element()? {
+                // Five names at most once each always fit.
+                if axes.contains(&axis) || axes.push(axis).is_err() {
+                    return Err(A::Error::invalid_value(
+                        Unexpected::Other("a line listed twice"),
+                        &EXPECTED,
+                    ));
+                }
+            }
+            match Lines::new(&axes) {
+                Some(lines) if lines.has(Axis::Y) => Ok(lines),
+                _ => Err(A::Error::invalid_value(
+                    Unexpected::Other("a list without \"x\" or \"y\""),
+                    &EXPECTED,
+                )),
+            }
         }
     }
 }

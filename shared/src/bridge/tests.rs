@@ -7,6 +7,7 @@ use super::*;
 use crate::model::Position;
 use crate::model::{Alarms, Axis, Command, FaultKind, ForwardFrame, LaserControl, Line, LineEvent};
 use crate::xy2::{Mode, Parity};
+use crate::xy3::rx::Lines;
 use crate::xy3::{BackRate, FrameSize};
 
 const US: u64 = 1_000;
@@ -91,6 +92,10 @@ fn every_rule_names_its_key() {
             ConfigError::Vote3NotDistinct([1, 3, 1]), "controller.hans.decode"),
         (|c| c.laser.gate = GateSource::HansMoPa,
             ConfigError::GateNeedsHans, "laser.gate"),
+        (|c| { c.controller.protocol = Protocol::Xy3; c.controller.xy3.lines = xy3_lines(&[Axis::X, Axis::Z]) },
+            ConfigError::Xy3LinesWithoutY, "controller.xy3.lines"),
+        (|c| { c.controller.protocol = Protocol::Xy3; c.controller.xy3.lines = xy3_lines(&[Axis::X, Axis::Y, Axis::U]) },
+            ConfigError::Xy3ZNotDriven, "controller.xy3.lines"),
         (|c| c.axes.offset_y = 0x1_0000,
             ConfigError::OutOfRange { key: "axes.offset_y", value: 0x1_0000, min: -0xFFFF, max: 0xFFFF },
             "axes.offset_y"),
@@ -121,6 +126,50 @@ fn every_rule_names_its_key() {
         assert!(text.starts_with(key), "{text}");
         assert!(Bridge::new(&c).is_err());
     }
+}
+
+fn xy3_lines(axes: &[Axis]) -> Lines {
+    Lines::new(axes).unwrap()
+}
+
+#[test]
+fn xy3_lines_what_the_bridge_receives() {
+    use Axis::{U, W, X, Y, Z};
+    let mut c = Config::default();
+    c.controller.protocol = Protocol::Xy3;
+    // The default: X, Y, and Z while the bridge takes Z from the input (as before
+    // the key existed).
+    assert_eq!(c.controller.xy3.lines, Lines::XYZ);
+    assert_eq!(c.xy3_input_lines(), Lines::XYZ);
+    c.z.source = ZSource::Fixed;
+    assert_eq!(c.validate(), Ok(()));
+    assert_eq!(c.xy3_input_lines(), Lines::XY);
+    // A controller without a Z line is fine once Z does not come from the input.
+    c.controller.xy3.lines = xy3_lines(&[X, Y]);
+    assert_eq!(c.validate(), Ok(()));
+    c.z.source = ZSource::None;
+    assert_eq!(c.validate(), Ok(()));
+    assert_eq!(c.xy3_input_lines(), Lines::XY);
+    // U and W reach only an XY3-100 head, so only then are they received.
+    c.controller.xy3.lines = Lines::ALL;
+    c.z.source = ZSource::Input;
+    assert_eq!(c.validate(), Ok(()));
+    assert_eq!(c.xy3_input_lines(), Lines::XYZ);
+    c.head.protocol = Protocol::Xy3;
+    assert_eq!(c.xy3_input_lines(), Lines::ALL);
+    c.controller.xy3.lines = xy3_lines(&[W, Y, X]);
+    c.z.source = ZSource::Fixed;
+    assert_eq!(c.validate(), Ok(()));
+    assert_eq!(c.xy3_input_lines(), xy3_lines(&[X, Y, W]));
+    assert!(Bridge::new(&c).is_ok());
+    // X always stays in a set.
+    assert_eq!(Lines::XY.without(X), Lines::XY);
+    assert_eq!(Lines::ALL.without(U).without(Z), xy3_lines(&[X, Y, W]));
+    // The lines of another controller protocol are not checked.
+    c.controller.protocol = Protocol::Xy2;
+    c.controller.xy3.lines = xy3_lines(&[X]);
+    c.z.source = ZSource::Input;
+    assert_eq!(c.validate(), Ok(()));
 }
 
 #[test]

@@ -4,8 +4,8 @@
 use core::fmt;
 
 use super::config::{
-    Config, GateSource, HansDecode, HeadSide, Protocol, Timing, HANS_RATE_HZ, MAX20, MAX_RATE_HZ,
-    MIN_RATE_HZ,
+    Config, GateSource, HansDecode, HeadSide, Protocol, Timing, ZSource, HANS_RATE_HZ, MAX20,
+    MAX_RATE_HZ, MIN_RATE_HZ,
 };
 use crate::xy2::{Mode, Parity};
 
@@ -31,6 +31,12 @@ pub enum ConfigError {
     Vote3NotDistinct([u8; 3]),
     /// `laser.gate`: the MO / PA gate needs a HANS-100 controller.
     GateNeedsHans,
+    /// `controller.xy3.lines`: Y is missing; every XY3-100 link has X and Y
+    /// (§3.1.1), and a bridge needs both.
+    Xy3LinesWithoutY,
+    /// `controller.xy3.lines`: `z.source = "input"` takes Z from the controller, but
+    /// the Z line is not listed.
+    Xy3ZNotDriven,
     /// A number outside its range.
     OutOfRange {
         /// The key.
@@ -54,6 +60,7 @@ impl ConfigError {
             Self::HansNotSlavable => "output.timing",
             Self::HansChannel(_) | Self::Vote3NotDistinct(_) => "controller.hans.decode",
             Self::GateNeedsHans => "laser.gate",
+            Self::Xy3LinesWithoutY | Self::Xy3ZNotDriven => "controller.xy3.lines",
             Self::OutOfRange { key, .. } => key,
         }
     }
@@ -83,6 +90,13 @@ impl fmt::Display for ConfigError {
                 write!(f, "vote3 channels {c:?} must be three distinct channels")
             }
             Self::GateNeedsHans => f.write_str("\"hans_mo_pa\" needs a HANS-100 controller"),
+            Self::Xy3LinesWithoutY => {
+                f.write_str("an XY3-100 controller drives X and Y: list \"x\" and \"y\"")
+            }
+            Self::Xy3ZNotDriven => f.write_str(
+                "z.source = \"input\" takes Z from the controller, but \"z\" is not listed; \
+                 add it, or set z.source to \"fixed\" or \"none\"",
+            ),
             Self::OutOfRange {
                 value, min, max, ..
             } => write!(f, "{value} is outside {min} ..= {max}"),
@@ -151,6 +165,15 @@ impl Config {
                     }
                 }
                 HansDecode::Vote5 | HansDecode::Super => {}
+            }
+        }
+        if c.protocol == Protocol::Xy3 {
+            let lines = c.xy3.lines;
+            if !lines.has(Axis::Y) {
+                return Err(ConfigError::Xy3LinesWithoutY);
+            }
+            if self.z.source == ZSource::Input && !lines.has(Axis::Z) {
+                return Err(ConfigError::Xy3ZNotDriven);
             }
         }
         let h = &self.head;

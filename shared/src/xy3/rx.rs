@@ -132,6 +132,15 @@ impl Lines {
     pub fn axes(self) -> impl Iterator<Item = Axis> {
         Axis::ALL.into_iter().filter(move |a| self.has(*a))
     }
+
+    /// The set without `axis`'s line. X stays: a set without X is not a valid set
+    /// (see the type's docs), so `without(Axis::X)` is the set unchanged.
+    pub const fn without(self, axis: Axis) -> Lines {
+        match axis {
+            Axis::X => self,
+            _ => Lines(self.0 & !(1 << axis as u8)),
+        }
+    }
 }
 
 /// Why a line has no frame in a period. Every variant means: do not use this line's
