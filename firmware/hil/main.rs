@@ -22,7 +22,9 @@ impl Prng {
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use embassy_stm32::gpio::{AfType, Flex, Input, Level, Output, OutputType, Pull, Speed};
+    use embassy_stm32::gpio::{
+        AfType, AnyPin, Flex, Input, Level, Output, OutputType, Pull, Speed,
+    };
     use embassy_stm32::peripherals::PA15;
     use embassy_stm32::peripherals::PG8;
     use embassy_stm32::time::Hertz;
@@ -57,6 +59,9 @@ mod tests {
     bind_interrupts!(struct Irqs {
         DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
         DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
+        DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
+        DMA1_STREAM3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
+        DMA1_STREAM4 => dma::InterruptHandler<peripherals::DMA1_CH4>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
@@ -296,7 +301,6 @@ mod tests {
         const FRAMES: usize = 120;
         const TPF: usize = 50;
         const BYTES: usize = 3 * FRAMES;
-        const CHUNK: usize = 60;
         const BAD: usize = 45;
         let r = board.res;
         let w = r.wave;
@@ -375,27 +379,7 @@ mod tests {
         let n = marks.drain(&mut ends);
         assert_eq!(n, FRAMES, "marks");
 
-        let mut receiver = xy3::rx::Receiver::new(xy3::rx::Lines::XY);
-        let mut periods: heapless::Vec<xy3::rx::Period, { FRAMES + 8 }> = heapless::Vec::new();
-        let (mut next_end, mut pushed) = (0, 0);
-        for (cx, cy) in bx.chunks(CHUNK).zip(by.chunks(CHUNK)) {
-            receiver.push_bytes(&[cx, cy]).unwrap();
-            pushed += cx.len();
-            // The ends whose bytes are in (at most 20 wait at a time).
-            let due = ends[next_end..n]
-                .iter()
-                .take_while(|&&e| e as usize <= pushed)
-                .count();
-            receiver.push_ends(&ends[next_end..next_end + due]);
-            next_end += due;
-            while let Some(p) = receiver.poll() {
-                periods.push(p).unwrap();
-            }
-        }
-        receiver.push_ends(&ends[next_end..n]);
-        while let Some(p) = receiver.poll() {
-            periods.push(p).unwrap();
-        }
+        let periods = xy3_decode::<{ FRAMES + 8 }>(xy3::rx::Lines::XY, &[&bx, &by], &ends[..n]);
         assert_eq!(periods.len(), FRAMES, "periods");
         for (k, p) in periods.iter().enumerate() {
             assert_eq!(p.end as usize, 3 * (k + 1), "end of period {}", k);
@@ -411,6 +395,177 @@ mod tests {
             } else {
                 assert_eq!(p.lines[1], Some(Ok(y_of(k))), "Y in period {}", k);
             }
+        }
+    }
+
+    /// Feeds whole received lines (axis order) and their frame ends to a fresh
+    /// `xy3::rx::Receiver` as the firmware's bridge loop does: 60-byte chunks, each
+    /// with the ends whose bytes are in (at most 20 wait at a time).
+    fn xy3_decode<const N: usize>(
+        lines: xy3::rx::Lines,
+        bytes: &[&[u8]],
+        ends: &[u32],
+    ) -> heapless::Vec<xy3::rx::Period, N> {
+        const CHUNK: usize = 60;
+        let mut receiver = xy3::rx::Receiver::new(lines);
+        let mut periods = heapless::Vec::new();
+        let len = bytes[0].len();
+        let (mut next_end, mut from) = (0, 0);
+        while from < len {
+            let to = (from + CHUNK).min(len);
+            let mut chunk: heapless::Vec<&[u8], 5> = heapless::Vec::new();
+            for line in bytes {
+                chunk.push(&line[from..to]).unwrap();
+            }
+            receiver.push_bytes(&chunk).unwrap();
+            from = to;
+            let due = ends[next_end..]
+                .iter()
+                .take_while(|&&e| e as usize <= to)
+                .count();
+            receiver.push_ends(&ends[next_end..next_end + due]);
+            next_end += due;
+            while let Some(p) = receiver.poll() {
+                periods.push(p).unwrap();
+            }
+        }
+        receiver.push_ends(&ends[next_end..]);
+        while let Some(p) = receiver.poll() {
+            periods.push(p).unwrap();
+        }
+        periods
+    }
+
+    /// All five XY3-100 data lines, as the firmware receives them with
+    /// `controller.xy3.lines = ["x", "y", "z", "u", "w"]` and an XY3-100 head.
+    /// Jumpers: PD0 (SYNC) -> PA15, PE11, PF6, PG10, PB12 and PA4; PD1 (CLK) -> PC10,
+    /// PE12, PF7, PA5 and PB10; PD2 (X) -> PC12; PD3 (Y) -> PE14; PD10 (Z) -> PF9;
+    /// PD14 (U) -> PB5; PD15 (W) -> PB15. 100 periods of five 24-bit position frames
+    /// at 100 kHz go out through `xy3::tx`; SPI3, SPI4, SPI5, SPI1 (NSS on PG10, since
+    /// PA4 is the EXTI input) and SPI2 receive them with the EXTI frame-end marks, and
+    /// `xy3::rx::Receiver` must give back every line's frame in every period, except
+    /// period 30, whose W bit 5 is flipped on the wire: W fails its check there, the
+    /// four other lines still decode and the period is not good.
+    #[test]
+    async fn xy3_five_lines_loopback(board: Board) {
+        use shared::model::Axis;
+        const FRAMES: usize = 100;
+        const TPF: usize = 50;
+        const BYTES: usize = 3 * FRAMES;
+        const BAD: usize = 30;
+        /// Port-D bits of the data pairs 3, 4, 5, 7, 8 (X, Y, Z, U, W).
+        const PINS: [u32; 5] = [P3, P4, 10, 14, 15];
+        let r = board.res;
+        let w = r.wave;
+        let p = w.pins;
+        // SYNC idles high (a rising edge before the first frame would be a mark).
+        let _sync = Output::new(p.p1, Level::High, Speed::VeryHigh);
+        let _pins = [
+            p.p2.into(),
+            p.p3.into(),
+            p.p4.into(),
+            p.p5.into(),
+            p.p7.into(),
+            p.p8.into(),
+        ]
+        .map(|pin: Peri<'static, AnyPin>| Output::new(pin, Level::Low, Speed::VeryHigh));
+        let data = PINS.map(|b| Some(b as u8));
+        let tx = xy3::tx::Transmitter::new(&xy3::tx::TxConfig {
+            pins: xy3::tx::OutPinMap {
+                clk: P2 as u8,
+                sync: P1 as u8,
+                data,
+            },
+            size: FrameSize::Bits24,
+            idle_ticks: xy3::tx::MIN_IDLE_TICKS,
+        })
+        .unwrap();
+        assert_eq!(tx.ticks_per_frame(), TPF);
+
+        let i = r.xy3_in;
+        // Every ring holds the whole transfer: nothing is read until it is all in.
+        let rings = [
+            dma_ring!(".sram1", u8, 512),
+            dma_ring!(".sram1", u8, 512),
+            dma_ring!(".sram1", u8, 512),
+            dma_ring!(".sram1", u8, 512),
+            dma_ring!(".sram1", u8, 512),
+        ];
+        let [rx_r, ry_r, rz_r, ru_r, rw_r] = rings;
+        let (lx, ly, lz, lu, lw) = (i.x, i.y, i.z, i.u, i.w);
+        let mut rx = [
+            SpiSlaveRx::new(lx.spi, lx.sck, lx.mosi, Some(lx.nss), lx.dma, Irqs, rx_r).unwrap(),
+            SpiSlaveRx::new(ly.spi, ly.sck, ly.mosi, Some(ly.nss), ly.dma, Irqs, ry_r).unwrap(),
+            SpiSlaveRx::new(lz.spi, lz.sck, lz.mosi, Some(lz.nss), lz.dma, Irqs, rz_r).unwrap(),
+            SpiSlaveRx::new(lu.spi, lu.sck, lu.mosi, Some(lu.nss), lu.dma, Irqs, ru_r).unwrap(),
+            SpiSlaveRx::new(lw.spi, lw.sck, lw.mosi, Some(lw.nss), lw.dma, Irqs, rw_r).unwrap(),
+        ];
+        let mut marks = SyncMarks::new(i.sync, i.exti, Irqs, 512);
+
+        let mut idle = [0u32; TPF];
+        tx.idle(&mut idle).unwrap();
+        let ring = dma_ring!(".sram1", u32, (FRAMES + 40) * TPF);
+        let mut out =
+            WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, idle[0], 5_000_000).unwrap();
+        out.start();
+
+        // A different position per line and period.
+        let pos = |line: usize, k: usize| {
+            let salt = 0x1357 + 0x1111 * line as u32;
+            Frame3::Position24(((k as u32).wrapping_mul(salt) ^ ((line as u32) << 16)) & 0xF_FFFF)
+        };
+        let mut batch = [0u32; 20 * TPF];
+        // Five batches of 20 frames, then one idle batch.
+        for b in 0..=FRAMES / 20 {
+            for (f, slot) in batch.chunks_exact_mut(TPF).enumerate() {
+                let k = b * 20 + f;
+                if k >= FRAMES {
+                    tx.idle(slot).unwrap();
+                    continue;
+                }
+                let frames = [0, 1, 2, 3, 4].map(|line| Some(pos(line, k)));
+                tx.encode(&frames, slot).unwrap();
+                if k == BAD {
+                    // Word 2b + 1 sets bit b's level; swap W's set and reset there.
+                    let word = &mut slot[2 * 5 + 1];
+                    let wbits = (1 << PINS[4]) | (1 << (PINS[4] + 16));
+                    assert!(*word & wbits != 0 && *word & wbits != wbits);
+                    *word ^= wbits;
+                }
+            }
+            out.write_half(&batch).await.unwrap();
+        }
+        let mut got = [[0u8; BYTES]; 5];
+        for (line, bytes) in rx.iter_mut().zip(got.iter_mut()) {
+            with_timeout(WAIT, line.read_exact(bytes))
+                .await
+                .unwrap()
+                .unwrap();
+        }
+        embassy_time::Timer::after_micros(50).await;
+        let mut ends = [0u32; FRAMES + 1];
+        let n = marks.drain(&mut ends);
+        assert_eq!(n, FRAMES, "marks");
+
+        let lines: [&[u8]; 5] = [&got[0], &got[1], &got[2], &got[3], &got[4]];
+        let periods = xy3_decode::<{ FRAMES + 8 }>(xy3::rx::Lines::ALL, &lines, &ends[..n]);
+        assert_eq!(periods.len(), FRAMES, "periods");
+        for (k, p) in periods.iter().enumerate() {
+            assert_eq!(p.end as usize, 3 * (k + 1), "end of period {}", k);
+            for (line, axis) in Axis::ALL.iter().enumerate() {
+                let got = p.lines[axis.index()];
+                if k == BAD && *axis == Axis::W {
+                    assert!(
+                        matches!(got, Some(Err(xy3::rx::RxError::Check(_)))),
+                        "W in period {}: {:?}",
+                        k,
+                        got
+                    );
+                } else {
+                    assert_eq!(got, Some(Ok(pos(line, k))), "{:?} in period {}", axis, k);
+                }
+            }
+            assert_eq!(p.all_ok(), k != BAD, "period {}", k);
         }
     }
 

@@ -387,7 +387,7 @@ fn the_other_pairings() {
     ));
     // (controller, capture, frames sent, head, head bits, extra keys, frames the
     // receivers need to lock: HANS-100 in and out take about two each).
-    let cases: [(&str, &str, &Sent, &str, u8, &str, usize); 4] = [
+    let cases: [(&str, &str, &Sent, &str, u8, &str, usize); 5] = [
         (
             "xy3",
             "xy3.vcd",
@@ -398,6 +398,16 @@ fn the_other_pairings() {
             1,
         ),
         ("xy3", "xy3.vcd", &xy3, "hans", 20, "", 3),
+        // U and W received too (`generate` drives them at the centre).
+        (
+            "xy3",
+            "xy3.vcd",
+            &xy3,
+            "xy3",
+            20,
+            "[controller.xy3]\nlines = [\"x\", \"y\", \"z\", \"u\", \"w\"]\n",
+            1,
+        ),
         (
             "hans",
             "hans.vcd",
@@ -424,6 +434,29 @@ fn the_other_pairings() {
         };
         check_forwarded(sent, &got, &e);
     }
+    // The configured lines are the ones read: U renamed to a signal the capture does
+    // not have is an error only once U is listed (and the head can carry it).
+    let u_gone = ["--map", "u=no_such_signal"];
+    let lines = "[controller.xy3]\nlines = [\"x\", \"y\", \"z\", \"u\"]\n";
+    bridge(&d, &config("xy3", "xy3", ""), "xy3.vcd", &u_gone);
+    bridge(&d, &config("xy3", "hans", lines), "xy3.vcd", &u_gone);
+    std::fs::write(d.join("bridge.toml"), config("xy3", "xy3", lines)).unwrap();
+    let o = run_in(
+        &d,
+        &[
+            "bridge",
+            "--config",
+            "bridge.toml",
+            "--input",
+            "xy3.vcd",
+            "--output-dir",
+            "out_u",
+            u_gone[0],
+            u_gone[1],
+        ],
+    );
+    assert_eq!(o.code, 1, "{}", o.stderr);
+    assert!(o.stderr.contains("no_such_signal"), "{}", o.stderr);
 }
 
 /// `fixtures/xy2_capture_10ns.vcd` (a logic analyser's conventions: 10 ns timescale,
