@@ -176,3 +176,175 @@ fn a_million_faulted_frames_none_corrupted() {
     assert!(rejected >= faulted, "{rejected} < {faulted}");
     assert_eq!(corrupted, 0);
 }
+
+/// Plays BSRR words onto a port and captures it as the XY3-100 SPI slaves would:
+/// a bit per CLK falling edge while SYNC is low, bytes per line (`lines` bits), and
+/// the X byte count at every SYNC rising edge.
+fn spi_capture(words: &[u32], clk: u8, sync: u8, lines: &[u8]) -> (Vec<Vec<u8>>, Vec<u32>) {
+    let mut port: u16 = 1 << sync;
+    let mut bytes = vec![Vec::new(); lines.len()];
+    let mut ends = Vec::new();
+    let mut shift = vec![0u8; lines.len()];
+    let mut nbits = 0;
+    for &w in words {
+        let before = port;
+        port &= !((w >> 16) as u16);
+        port |= w as u16;
+        let fell = |b: u8| before >> b & 1 != 0 && port >> b & 1 == 0;
+        let rose = |b: u8| before >> b & 1 == 0 && port >> b & 1 != 0;
+        if fell(clk) && port >> sync & 1 == 0 {
+            for (s, &l) in shift.iter_mut().zip(lines) {
+                *s = *s << 1 | (port >> l & 1) as u8;
+            }
+            nbits += 1;
+            if nbits == 8 {
+                for (b, s) in bytes.iter_mut().zip(shift.iter_mut()) {
+                    b.push(*s);
+                    *s = 0;
+                }
+                nbits = 0;
+            }
+        }
+        if rose(sync) {
+            ends.push(bytes[0].len() as u32);
+            nbits = 0;
+        }
+    }
+    (bytes, ends)
+}
+
+/// The same campaign for an XY3-100 controller (24-bit frames, X Y Z) -> XY2-100
+/// head: one fault in a third of the periods: a flipped data bit (any but the kind
+/// bit, which is outside the parity and turns a position into a valid command:
+/// README "What each check catches"), a SYNC glitch inside a frame, or a missed
+/// SYNC edge (two frames merged).
+#[test]
+fn a_million_faulted_xy3_frames_none_corrupted() {
+    use shared::xy3;
+    let mut c = Config::default();
+    c.controller.protocol = Protocol::Xy3;
+    c.head.protocol = Protocol::Xy2;
+    c.z.source = ZSource::Input;
+    c.failsafe.recovery_frames = 10;
+    let t = GenTiming::default();
+    let size = xy3::FrameSize::Bits24;
+    let tx = xy3::tx::Transmitter::new(&xy3::tx::TxConfig {
+        pins: xy3::tx::OutPinMap {
+            clk: 4,
+            sync: 0,
+            data: [Some(1), Some(2), Some(3), None, None],
+        },
+        size,
+        idle_ticks: xy3::tx::MIN_IDLE_TICKS,
+    })
+    .unwrap();
+    let tpf = tx.ticks_per_frame();
+    let mut rng = ChaCha8Rng::seed_from_u64(0xB17);
+    let (mut total, mut faulted, mut corrupted, mut distinct, mut skipped) =
+        (0u64, 0u64, 0u64, 0u64, 0u64);
+    for block in 0..BLOCKS {
+        let frames: Vec<_> = (0..BLOCK)
+            .map(|i| {
+                let v = [
+                    ((block * 7 + i * 37) & 0xFFFF) << 4,
+                    ((60_000 + block * 3 + i * 53) & 0xFFFF) << 4,
+                    ((i * 11 + block) & 0xFFFF) << 4,
+                ];
+                stimulus::frame(&c, &t, v, None)
+            })
+            .collect();
+        let mut words = vec![0u32; frames.len() * tpf];
+        for (f, slot) in frames.iter().zip(words.chunks_exact_mut(tpf)) {
+            let pos = |a: Axis| Some(xy3::neutral::position_frame(f.axis(a).unwrap(), size));
+            tx.encode(
+                &[pos(Axis::X), pos(Axis::Y), pos(Axis::Z), None, None],
+                slot,
+            )
+            .unwrap();
+        }
+        let (mut bytes, clean_ends) = spi_capture(&words, 4, 0, &[1, 2, 3]);
+        assert_eq!(clean_ends.len(), frames.len());
+        let mut ends = Vec::with_capacity(clean_ends.len());
+        for (k, &e) in clean_ends.iter().enumerate() {
+            if rng.random_range(0..3) != 0 {
+                ends.push(e);
+                continue;
+            }
+            faulted += 1;
+            match rng.random_range(0..3) {
+                0 => {
+                    // Bit 1 (MSB first) of a 24-bit frame is the kind bit.
+                    let bit = [
+                        0, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21,
+                        22, 23,
+                    ][rng.random_range(0..23)];
+                    let line = rng.random_range(0..3);
+                    let at = e as usize - 3 + bit / 8;
+                    bytes[line][at] ^= 0x80 >> (bit % 8);
+                    ends.push(e);
+                }
+                1 => {
+                    ends.push(e - rng.random_range(1..3));
+                    ends.push(e);
+                }
+                _ => {
+                    if k + 1 == clean_ends.len() {
+                        ends.push(e);
+                    }
+                }
+            }
+        }
+        total += frames.len() as u64;
+        let want: HashMap<_, usize> = frames
+            .iter()
+            .enumerate()
+            .map(|(i, f)| (expected(&c, f), i))
+            .collect();
+        let mut p = Pipeline::new(&c, Options::default()).unwrap();
+        // DMA halves of 60 bytes per line (20 frames, 200 us) with the frame ends
+        // that fall inside them.
+        let mut e = 0;
+        for (k, from) in (0..bytes[0].len()).step_by(60).enumerate() {
+            let to = (from + 60).min(bytes[0].len());
+            let lines: Vec<&[u8]> = bytes.iter().map(|l| &l[from..to]).collect();
+            let first = e;
+            while e < ends.len() && ends[e] as usize <= to {
+                e += 1;
+            }
+            let t_ns = 2_000 + (k as u64 + 1) * 200_000;
+            let chunk = ControllerInput::Xy3 {
+                lines: &lines,
+                ends: &ends[first..e],
+            };
+            p.feed_spread(t_ns, 200_000, chunk).unwrap();
+        }
+        p.run_until(2_000 + bytes[0].len() as u64 / 3 * 10_000 + 300_000);
+        let mut last = None;
+        for s in p.sent().iter().filter(|s| s.state == LinkState::Running) {
+            match want.get(&raw(&c, &s.frame)) {
+                Some(&i) if last.is_none_or(|l| i >= l) => {
+                    if last != Some(i) {
+                        distinct += 1;
+                    }
+                    last = Some(i);
+                }
+                _ => corrupted += 1,
+            }
+        }
+        let k = p.bridge_counters();
+        assert_eq!(k.input_losses, 0, "block {block}: {k:?}");
+        skipped += u64::from(k.skipped);
+    }
+    let lost = total - distinct;
+    println!(
+        "XY3 fault campaign: {total} frames, {faulted} periods with one fault, {lost} \
+         frames not forwarded ({skipped} skipped), {corrupted} corrupted frames forwarded"
+    );
+    assert!(total >= 1_000_000);
+    assert!(lost >= faulted, "{lost} < {faulted}");
+    assert!(
+        lost <= 2 * faulted + skipped + u64::from(BLOCKS) * 12,
+        "{lost}"
+    );
+    assert_eq!(corrupted, 0);
+}
