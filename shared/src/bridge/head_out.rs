@@ -130,11 +130,11 @@ mod tests {
 
     fn xy2(mode: xy2::Mode, z: bool) -> HeadTx {
         let pins = xy2::tx::OutPinMap {
-            clk: 0,
-            sync: 1,
-            x: 2,
-            y: 3,
-            z: z.then_some(10),
+            clk: 4,
+            sync: 5,
+            x: 6,
+            y: 7,
+            z: z.then_some(8),
         };
         let link = xy2::LinkConfig {
             mode,
@@ -195,12 +195,27 @@ mod tests {
         slot
     }
 
+    /// No frame, or a frame without X, Y or (Z driven) Z: an idle slot. `no_z`, the
+    /// same head without a Z line, takes a frame without Z.
+    fn missing_axes_idle(z: &HeadTx, no_z: &HeadTx) {
+        let i = idle(z);
+        assert_eq!(run(z, None), (false, i.clone()));
+        for axis in [Axis::X, Axis::Y, Axis::Z] {
+            let mut f = xyz();
+            f.axes[axis.index()] = None;
+            assert_eq!(run(z, Some(&f)), (false, i.clone()), "{axis:?}");
+        }
+        let mut f = xyz();
+        f.axes[Axis::Z.index()] = None;
+        assert!(run(no_z, Some(&f)).0);
+    }
+
     #[test]
     fn idle_levels() {
         let h = xy2(xy2::Mode::Standard16, true);
         let HeadTx::Xy2 { tx, .. } = h else { panic!() };
         assert!(idle(&h).iter().all(|&w| w == tx.idle_word()));
-        // XY3-100: SYNC (bit 0) set, CLK (bit 1) and data reset by the first word.
+        // XY3-100: SYNC (bit 0) set, CLK (bit 1) reset by the first word.
         let w = idle(&xy3(FrameSize::Bits32, true));
         assert_eq!(w[0] & 1, 1);
         assert_ne!(w[0] & 1 << (1 + 16), 0);
@@ -262,16 +277,7 @@ mod tests {
     fn xy2_missing_axis_or_refused_frame_idles() {
         let h = xy2(xy2::Mode::Standard16, true);
         let i = idle(&h);
-        assert_eq!(run(&h, None), (false, i.clone()));
-        for axis in [Axis::X, Axis::Y, Axis::Z] {
-            let mut f = xyz();
-            f.axes[axis.index()] = None;
-            assert_eq!(run(&h, Some(&f)), (false, i.clone()), "{axis:?}");
-        }
-        // Z may be missing when the Z line is not driven.
-        let mut f = xyz();
-        f.axes[Axis::Z.index()] = None;
-        assert!(run(&xy2(xy2::Mode::Standard16, false), Some(&f)).0);
+        missing_axes_idle(&h, &xy2(xy2::Mode::Standard16, false));
         // A command on an 18-bit link is refused by the encoder: idle, not a guess.
         let h18 = xy2(xy2::Mode::Extended18, false);
         let f = ForwardFrame {
@@ -325,15 +331,7 @@ mod tests {
     fn xy3_missing_axis_or_refused_frame_idles() {
         let h = xy3(FrameSize::Bits32, true);
         let i = idle(&h);
-        assert_eq!(run(&h, None), (false, i.clone()));
-        for axis in [Axis::X, Axis::Y, Axis::Z] {
-            let mut f = xyz();
-            f.axes[axis.index()] = None;
-            assert_eq!(run(&h, Some(&f)), (false, i.clone()), "{axis:?}");
-        }
-        let mut f = xyz();
-        f.axes[Axis::Z.index()] = None;
-        assert!(run(&xy3(FrameSize::Bits32, false), Some(&f)).0);
+        missing_axes_idle(&h, &xy3(FrameSize::Bits32, false));
         // Commands XY3-100 cannot send: an XY2-100 one, a code wider than the field.
         for command in [
             Command::Xy2Enhanced {
