@@ -6,8 +6,10 @@
 //! input, and the demo.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+mod common;
+
+use common::{ok_in, records, run_in, Out};
 use host_tests::sim::demo::{hans_head_status, HEALTHY};
 use host_tests::sim::jsonl::{self, BackRecord, Channel, ForwardRecord, HansRecord};
 use host_tests::vcd_io::{read_vcd_file, write_vcd_file, NameMap, WriteTimescale};
@@ -16,8 +18,6 @@ use shared::hans::GalvoAlarms;
 use shared::model::Position;
 use shared::xy2;
 
-const BIN: &str = env!("CARGO_BIN_EXE_bridge-sim");
-
 fn dir(test: &str) -> PathBuf {
     let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("bridge_sim_bridge_{test}"));
     let _ = std::fs::remove_dir_all(&d);
@@ -25,45 +25,10 @@ fn dir(test: &str) -> PathBuf {
     d
 }
 
-struct Out {
-    code: i32,
-    stdout: String,
-    stderr: String,
-}
-
-fn run_in(cwd: &Path, args: &[&str]) -> Out {
-    let o = Command::new(BIN)
-        .current_dir(cwd)
-        .args(args)
-        .output()
-        .unwrap();
-    let out = Out {
-        code: o.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
-    };
-    assert!(!out.stderr.contains("panicked"), "panic: {}", out.stderr);
-    out
-}
-
-fn ok_in(cwd: &Path, args: &[&str]) -> Out {
-    let o = run_in(cwd, args);
-    assert_eq!(o.code, 0, "{args:?}: {}", o.stderr);
-    o
-}
-
 /// `generate` in `d`; returns the frames sent.
 fn generate(d: &Path, name: &str, args: &[&str]) -> Vec<String> {
-    let vcd = format!("{name}.vcd");
-    let jl = format!("{name}.jsonl");
-    let mut a = vec!["generate", "--output", &vcd, "--frames-out", &jl];
-    a.extend_from_slice(args);
-    ok_in(d, &a);
-    std::fs::read_to_string(d.join(jl))
-        .unwrap()
-        .lines()
-        .map(str::to_owned)
-        .collect()
+    let (_, text) = common::generate(d, name, args);
+    text.lines().map(str::to_owned).collect()
 }
 
 fn bridge(d: &Path, config: &str, input: &str, extra: &[&str]) -> Out {
@@ -1005,11 +970,7 @@ fn demo_runs_and_its_files_decode() {
             "bridge-sim-demo/controller.vcd",
         ],
     );
-    let ctrl: Vec<ForwardRecord> = jsonl::parse(&ctrl.stdout)
-        .unwrap()
-        .into_iter()
-        .map(|(_, r)| r)
-        .collect();
+    let ctrl: Vec<ForwardRecord> = records(&ctrl.stdout);
     assert_eq!(ctrl.len(), 3000);
     let valid: Vec<(u32, u32)> = ctrl
         .iter()
