@@ -31,6 +31,22 @@ fn generate(d: &Path, name: &str, args: &[&str]) -> Vec<String> {
     text.lines().map(str::to_owned).collect()
 }
 
+/// `generate` of 300 frames of `pattern` on `protocol`; returns the frames sent.
+fn generate_pattern(d: &Path, name: &str, protocol: &str, pattern: &str) -> Vec<String> {
+    generate(
+        d,
+        name,
+        &[
+            "--protocol",
+            protocol,
+            "--pattern",
+            pattern,
+            "--frames",
+            "300",
+        ],
+    )
+}
+
 fn bridge(d: &Path, config: &str, input: &str, extra: &[&str]) -> Out {
     std::fs::write(d.join("bridge.toml"), config).unwrap();
     let mut a = vec![
@@ -202,18 +218,7 @@ fn config(controller: &str, head: &str, extra: &str) -> String {
 #[test]
 fn xy2_to_xy3_and_hans_heads() {
     let d = dir("xy2");
-    let sent = sent_positions(&generate(
-        &d,
-        "in",
-        &[
-            "--protocol",
-            "xy2",
-            "--pattern",
-            "circle",
-            "--frames",
-            "300",
-        ],
-    ));
+    let sent = sent_positions(&generate_pattern(&d, "in", "xy2", "circle"));
     for (head, bits, skip, extra) in [
         ("xy3", 20, 1, ""),
         ("xy3", 26, 1, "[head.xy3]\nframe_bits = 32\n"),
@@ -253,18 +258,7 @@ fn xy3_and_hans_controllers_with_axis_map() {
     let d = dir("xy3_hans");
     // XY3-100 (24-bit, 2.4 MHz: 96 kHz frames) -> XY2-100 16-bit: narrowing, the
     // output faster than the input (repeats), X and Y swapped.
-    let sent = sent_positions(&generate(
-        &d,
-        "xy3",
-        &[
-            "--protocol",
-            "xy3",
-            "--pattern",
-            "random",
-            "--frames",
-            "300",
-        ],
-    ));
+    let sent = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random"));
     let o = bridge(
         &d,
         &config("xy3", "xy2", "[axes]\nswap_xy = true\n"),
@@ -288,18 +282,7 @@ fn xy3_and_hans_controllers_with_axis_map() {
     check_forwarded(&sent, &got, &e);
 
     // HANS-100 (super mode) -> XY3-100 32-bit: widening 20 -> 26 bits.
-    let sent = sent_hans(&generate(
-        &d,
-        "hans",
-        &[
-            "--protocol",
-            "hans",
-            "--pattern",
-            "raster",
-            "--frames",
-            "300",
-        ],
-    ));
+    let sent = sent_hans(&generate_pattern(&d, "hans", "hans", "raster"));
     let o = bridge(
         &d,
         &config(
@@ -326,30 +309,8 @@ fn xy3_and_hans_controllers_with_axis_map() {
 #[test]
 fn the_other_pairings() {
     let d = dir("others");
-    let xy3 = sent_positions(&generate(
-        &d,
-        "xy3",
-        &[
-            "--protocol",
-            "xy3",
-            "--pattern",
-            "random",
-            "--frames",
-            "300",
-        ],
-    ));
-    let hans = sent_hans(&generate(
-        &d,
-        "hans",
-        &[
-            "--protocol",
-            "hans",
-            "--pattern",
-            "random",
-            "--frames",
-            "300",
-        ],
-    ));
+    let xy3 = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random"));
+    let hans = sent_hans(&generate_pattern(&d, "hans", "hans", "random"));
     // (controller, capture, frames sent, head, head bits, extra keys, frames the
     // receivers need to lock: HANS-100 in and out take about two each).
     let cases: [(&str, &str, &Sent, &str, u8, &str, usize); 4] = [
@@ -748,11 +709,7 @@ fn controller_status_files_decode() {
     // An XY3-100 controller gets the backchannel, which the `decode` backchannel
     // parser takes without a single error: SYNC first, then the error state: DSP
     // data error (code 2) while the link is not running, cleared once it runs.
-    generate(
-        &d,
-        "xy3",
-        &["--protocol", "xy3", "--pattern", "steps", "--frames", "300"],
-    );
+    generate_pattern(&d, "xy3", "xy3", "steps");
     let o = bridge(&d, &config("xy3", "xy2", ""), "xy3.vcd", &[]);
     assert!(
         o.stderr.contains("out/controller-status.vcd (back)"),
