@@ -1,10 +1,10 @@
-//! The head-side waveform encoder of the bridge loop: the bridge's neutral frames ->
-//! BSRR words of one frame slot (`shared::xy2::tx` / `shared::xy3::tx`), and the
-//! board's head-side port-D wiring.
+//! The head-side waveform encoder of the bridge loop: the board's head-side port-D
+//! wiring and timing around `shared::bridge::head_out`, which turns the bridge's
+//! neutral frames into BSRR words of one frame slot.
 
+use shared::bridge::head_out::HeadTx;
 use shared::bridge::{Config, Protocol, ZSource};
-use shared::model::{Axis, ForwardFrame};
-use shared::xy3::neutral::{command_frame, position_frame};
+use shared::model::ForwardFrame;
 use shared::xy3::FrameSize;
 use shared::{xy2, xy3};
 
@@ -38,13 +38,9 @@ const XY2_BIT_HZ: u32 = 2_000_000;
 /// = 5 MHz, already exact).
 const XY3_IDLE_32: u8 = 16;
 
-/// The head-side encoder: neutral frames -> BSRR words of one frame slot.
-pub(super) enum Encoder {
-    /// XY2-100 with the head's position mode; `z` = the Z line is driven.
-    Xy2(xy2::tx::Transmitter, xy2::Mode, bool),
-    /// XY3-100 with the head's frame size; `z` = the Z line is driven.
-    Xy3(xy3::tx::Transmitter, FrameSize, bool),
-}
+/// The head-side encoder: neutral frames -> BSRR words of one frame slot
+/// ([`HeadTx`], shared with the host pipeline).
+pub(super) struct Encoder(HeadTx);
 
 impl Encoder {
     /// The encoder for the configured head, or why there is none.
@@ -68,7 +64,13 @@ impl Encoder {
                     parity: h.parity,
                 };
                 xy2::tx::Transmitter::new(pins, ticks, link)
-                    .map(|t| Encoder::Xy2(t, h.mode, z))
+                    .map(|tx| {
+                        Encoder(HeadTx::Xy2 {
+                            tx,
+                            mode: h.mode,
+                            z,
+                        })
+                    })
                     .map_err(|_| "XY2-100 transmitter refused the frame rate")
             }
             Protocol::Xy3 => {
@@ -88,7 +90,7 @@ impl Encoder {
                     idle_ticks,
                 };
                 xy3::tx::Transmitter::new(&tx)
-                    .map(|t| Encoder::Xy3(t, size, z))
+                    .map(|tx| Encoder(HeadTx::Xy3 { tx, z }))
                     .map_err(|_| "XY3-100 transmitter configuration refused")
             }
             Protocol::Hans => Err("HANS-100 head is not a waveform output"),
@@ -96,10 +98,7 @@ impl Encoder {
     }
 
     pub(super) fn ticks_per_frame(&self) -> usize {
-        match self {
-            Encoder::Xy2(t, ..) => t.ticks_per_frame(),
-            Encoder::Xy3(t, ..) => t.ticks_per_frame(),
-        }
+        self.0.ticks_per_frame()
     }
 
     /// The timer tick rate for `rate` frames per second.
@@ -109,54 +108,8 @@ impl Encoder {
     }
 
     /// Encodes `frame` into `slot`, or idles the slot for `None` and for a frame the
-    /// head cannot take (an axis without a position): the head then sees no frame in
-    /// this slot rather than a guessed one. Returns whether a frame was written.
+    /// head cannot take (see [`HeadTx::encode`]). Returns whether a frame was written.
     pub(super) fn encode(&self, frame: Option<&ForwardFrame>, slot: &mut [u32]) -> bool {
-        match self {
-            Encoder::Xy2(t, mode, z) => {
-                let f = frame.and_then(|f| {
-                    let pos = |a: Axis| f.axis(a).map(|p| xy2::Frame::from_position(p, *mode));
-                    // A command rides on X in place of the position (XY2-100 enhanced).
-                    let x = f
-                        .command
-                        .and_then(xy2::Frame::from_command)
-                        .or(pos(Axis::X))?;
-                    // A driven Z line needs a Z frame: all-zero bits would be an
-                    // invalid frame on the head's Z channel.
-                    let z = if *z { Some(pos(Axis::Z)?) } else { None };
-                    Some(xy2::tx::TxFrame {
-                        x,
-                        y: pos(Axis::Y)?,
-                        z,
-                    })
-                });
-                match f {
-                    Some(f) => t.write_frame(slot, &f).is_ok(),
-                    None => {
-                        slot.fill(t.idle_word());
-                        false
-                    }
-                }
-            }
-            Encoder::Xy3(t, size, z) => {
-                let frames = frame.and_then(|f| {
-                    let pos = |a: Axis| f.axis(a).map(|p| position_frame(p, *size));
-                    let x = match f.command {
-                        Some(c) => command_frame(&c, *size).ok(),
-                        None => pos(Axis::X),
-                    }?;
-                    let zf = if *z { Some(pos(Axis::Z)?) } else { None };
-                    Some([Some(x), Some(pos(Axis::Y)?), zf, None, None])
-                });
-                if let Some(fr) = frames {
-                    if t.encode(&fr, slot).is_ok() {
-                        return true;
-                    }
-                }
-                // `slot` is exactly one frame period long, which is all `idle` checks.
-                let _ = t.idle(slot);
-                false
-            }
-        }
+        self.0.encode(frame, slot)
     }
 }

@@ -5,15 +5,15 @@
 //! bad input.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+mod common;
+
+use common::{ok_in, records, run_in, Out};
 use host_tests::line::sample::{xy2_port_words, xy3_spi, PartialByte, PinMap};
 use host_tests::sim::jsonl::{self, BackRecord, Channel, ForwardRecord, HansRecord};
 use host_tests::vcd_io::{read_vcd_file, NameMap};
 use host_tests::wave::Waveform;
 use shared::{hans, xy2, xy3};
-
-const BIN: &str = env!("CARGO_BIN_EXE_bridge-sim");
 
 fn dir(test: &str) -> PathBuf {
     let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("bridge_sim_{test}"));
@@ -21,48 +21,17 @@ fn dir(test: &str) -> PathBuf {
     d
 }
 
-struct Out {
-    code: i32,
-    stdout: String,
-    stderr: String,
-}
-
 fn run(args: &[&str]) -> Out {
-    let o = Command::new(BIN).args(args).output().unwrap();
-    let out = Out {
-        code: o.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
-    };
-    assert!(!out.stderr.contains("panicked"), "panic: {}", out.stderr);
-    out
+    run_in(Path::new("."), args)
 }
 
 fn ok(args: &[&str]) -> Out {
-    let o = run(args);
-    assert_eq!(o.code, 0, "{args:?}: {}", o.stderr);
-    o
+    ok_in(Path::new("."), args)
 }
 
 /// Runs `generate` and returns the frames it reports (`--frames-out`).
 fn generate<T: serde::de::DeserializeOwned>(d: &Path, name: &str, args: &[&str]) -> Vec<T> {
-    let vcd = d.join(format!("{name}.vcd"));
-    let jl = d.join(format!("{name}.jsonl"));
-    let mut a = vec![
-        "generate",
-        "--output",
-        vcd.to_str().unwrap(),
-        "--frames-out",
-        jl.to_str().unwrap(),
-    ];
-    a.extend_from_slice(args);
-    ok(&a);
-    let text = std::fs::read_to_string(jl).unwrap();
-    jsonl::parse::<T>(&text)
-        .unwrap()
-        .into_iter()
-        .map(|(_, r)| r)
-        .collect()
+    records(&common::generate(d, name, args).1)
 }
 
 /// Reads `roles` from a file where they are called `names`.
@@ -561,11 +530,7 @@ fn xy3_back_generate_decode_round_trip() {
         "--input",
         vcd.to_str().unwrap(),
     ]);
-    let got: Vec<BackRecord> = jsonl::parse(&o.stdout)
-        .unwrap()
-        .into_iter()
-        .map(|(_, r)| r)
-        .collect();
+    let got: Vec<BackRecord> = records(&o.stdout);
     assert_eq!(got, want);
     assert!(
         o.stderr.contains(&format!("accepted {}", want.len())),
@@ -640,11 +605,7 @@ fn xy3_back_noise_gives_errors_then_resync() {
         "--map",
         "back=RS485_RX",
     ]);
-    let got: Vec<BackRecord> = jsonl::parse(&o.stdout)
-        .unwrap()
-        .into_iter()
-        .map(|(_, r)| r)
-        .collect();
+    let got: Vec<BackRecord> = records(&o.stdout);
     assert!(got.iter().any(|r| matches!(r, BackRecord::Error { .. })));
     // Everything after the burst (20..30 ms) is received again, exactly.
     let late = |v: &[BackRecord]| -> Vec<BackRecord> {

@@ -6,8 +6,10 @@
 //! input, and the demo.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+mod common;
+
+use common::{ok_in, records, run_in, Out};
 use host_tests::sim::demo::{hans_head_status, HEALTHY};
 use host_tests::sim::jsonl::{self, BackRecord, Channel, ForwardRecord, HansRecord};
 use host_tests::vcd_io::{read_vcd_file, write_vcd_file, NameMap, WriteTimescale};
@@ -16,8 +18,6 @@ use shared::hans::GalvoAlarms;
 use shared::model::Position;
 use shared::xy2;
 
-const BIN: &str = env!("CARGO_BIN_EXE_bridge-sim");
-
 fn dir(test: &str) -> PathBuf {
     let d = Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("bridge_sim_bridge_{test}"));
     let _ = std::fs::remove_dir_all(&d);
@@ -25,45 +25,26 @@ fn dir(test: &str) -> PathBuf {
     d
 }
 
-struct Out {
-    code: i32,
-    stdout: String,
-    stderr: String,
-}
-
-fn run_in(cwd: &Path, args: &[&str]) -> Out {
-    let o = Command::new(BIN)
-        .current_dir(cwd)
-        .args(args)
-        .output()
-        .unwrap();
-    let out = Out {
-        code: o.status.code().unwrap_or(-1),
-        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
-    };
-    assert!(!out.stderr.contains("panicked"), "panic: {}", out.stderr);
-    out
-}
-
-fn ok_in(cwd: &Path, args: &[&str]) -> Out {
-    let o = run_in(cwd, args);
-    assert_eq!(o.code, 0, "{args:?}: {}", o.stderr);
-    o
-}
-
 /// `generate` in `d`; returns the frames sent.
 fn generate(d: &Path, name: &str, args: &[&str]) -> Vec<String> {
-    let vcd = format!("{name}.vcd");
-    let jl = format!("{name}.jsonl");
-    let mut a = vec!["generate", "--output", &vcd, "--frames-out", &jl];
-    a.extend_from_slice(args);
-    ok_in(d, &a);
-    std::fs::read_to_string(d.join(jl))
-        .unwrap()
-        .lines()
-        .map(str::to_owned)
-        .collect()
+    let (_, text) = common::generate(d, name, args);
+    text.lines().map(str::to_owned).collect()
+}
+
+/// `generate` of 300 frames of `pattern` on `protocol`; returns the frames sent.
+fn generate_pattern(d: &Path, name: &str, protocol: &str, pattern: &str) -> Vec<String> {
+    generate(
+        d,
+        name,
+        &[
+            "--protocol",
+            protocol,
+            "--pattern",
+            pattern,
+            "--frames",
+            "300",
+        ],
+    )
 }
 
 fn bridge(d: &Path, config: &str, input: &str, extra: &[&str]) -> Out {
@@ -237,18 +218,7 @@ fn config(controller: &str, head: &str, extra: &str) -> String {
 #[test]
 fn xy2_to_xy3_and_hans_heads() {
     let d = dir("xy2");
-    let sent = sent_positions(&generate(
-        &d,
-        "in",
-        &[
-            "--protocol",
-            "xy2",
-            "--pattern",
-            "circle",
-            "--frames",
-            "300",
-        ],
-    ));
+    let sent = sent_positions(&generate_pattern(&d, "in", "xy2", "circle"));
     for (head, bits, skip, extra) in [
         ("xy3", 20, 1, ""),
         ("xy3", 26, 1, "[head.xy3]\nframe_bits = 32\n"),
@@ -288,18 +258,7 @@ fn xy3_and_hans_controllers_with_axis_map() {
     let d = dir("xy3_hans");
     // XY3-100 (24-bit, 2.4 MHz: 96 kHz frames) -> XY2-100 16-bit: narrowing, the
     // output faster than the input (repeats), X and Y swapped.
-    let sent = sent_positions(&generate(
-        &d,
-        "xy3",
-        &[
-            "--protocol",
-            "xy3",
-            "--pattern",
-            "random",
-            "--frames",
-            "300",
-        ],
-    ));
+    let sent = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random"));
     let o = bridge(
         &d,
         &config("xy3", "xy2", "[axes]\nswap_xy = true\n"),
@@ -323,18 +282,7 @@ fn xy3_and_hans_controllers_with_axis_map() {
     check_forwarded(&sent, &got, &e);
 
     // HANS-100 (super mode) -> XY3-100 32-bit: widening 20 -> 26 bits.
-    let sent = sent_hans(&generate(
-        &d,
-        "hans",
-        &[
-            "--protocol",
-            "hans",
-            "--pattern",
-            "raster",
-            "--frames",
-            "300",
-        ],
-    ));
+    let sent = sent_hans(&generate_pattern(&d, "hans", "hans", "raster"));
     let o = bridge(
         &d,
         &config(
@@ -361,30 +309,8 @@ fn xy3_and_hans_controllers_with_axis_map() {
 #[test]
 fn the_other_pairings() {
     let d = dir("others");
-    let xy3 = sent_positions(&generate(
-        &d,
-        "xy3",
-        &[
-            "--protocol",
-            "xy3",
-            "--pattern",
-            "random",
-            "--frames",
-            "300",
-        ],
-    ));
-    let hans = sent_hans(&generate(
-        &d,
-        "hans",
-        &[
-            "--protocol",
-            "hans",
-            "--pattern",
-            "random",
-            "--frames",
-            "300",
-        ],
-    ));
+    let xy3 = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random"));
+    let hans = sent_hans(&generate_pattern(&d, "hans", "hans", "random"));
     // (controller, capture, frames sent, head, head bits, extra keys, frames the
     // receivers need to lock: HANS-100 in and out take about two each).
     let cases: [(&str, &str, &Sent, &str, u8, &str, usize); 5] = [
@@ -816,11 +742,7 @@ fn controller_status_files_decode() {
     // An XY3-100 controller gets the backchannel, which the `decode` backchannel
     // parser takes without a single error: SYNC first, then the error state: DSP
     // data error (code 2) while the link is not running, cleared once it runs.
-    generate(
-        &d,
-        "xy3",
-        &["--protocol", "xy3", "--pattern", "steps", "--frames", "300"],
-    );
+    generate_pattern(&d, "xy3", "xy3", "steps");
     let o = bridge(&d, &config("xy3", "xy2", ""), "xy3.vcd", &[]);
     assert!(
         o.stderr.contains("out/controller-status.vcd (back)"),
@@ -1038,11 +960,7 @@ fn demo_runs_and_its_files_decode() {
             "bridge-sim-demo/controller.vcd",
         ],
     );
-    let ctrl: Vec<ForwardRecord> = jsonl::parse(&ctrl.stdout)
-        .unwrap()
-        .into_iter()
-        .map(|(_, r)| r)
-        .collect();
+    let ctrl: Vec<ForwardRecord> = records(&ctrl.stdout);
     assert_eq!(ctrl.len(), 3000);
     let valid: Vec<(u32, u32)> = ctrl
         .iter()

@@ -5,11 +5,12 @@
 //! or the encoded fixture), never the decoder's own output.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-use host_tests::sim::jsonl::{self, Channel, ForwardRecord, HansRecord};
+mod common;
 
-const BIN: &str = env!("CARGO_BIN_EXE_bridge-sim");
+use common::{ok_in, records, run_in, Out};
+use host_tests::sim::jsonl::{Channel, ForwardRecord, HansRecord};
+
 const LANES: [&str; 5] = ["x", "y", "z", "u", "w"];
 
 fn dir(test: &str) -> PathBuf {
@@ -18,44 +19,14 @@ fn dir(test: &str) -> PathBuf {
     d
 }
 
-struct Out {
-    stdout: String,
-    stderr: String,
-}
-
 fn ok(args: &[&str]) -> Out {
-    let o = Command::new(BIN).args(args).output().unwrap();
-    let out = Out {
-        stdout: String::from_utf8_lossy(&o.stdout).into_owned(),
-        stderr: String::from_utf8_lossy(&o.stderr).into_owned(),
-    };
-    assert!(!out.stderr.contains("panicked"), "panic: {}", out.stderr);
-    assert_eq!(o.status.code(), Some(0), "{args:?}: {}", out.stderr);
-    out
-}
-
-fn records(text: &str) -> Vec<ForwardRecord> {
-    jsonl::parse::<ForwardRecord>(text)
-        .unwrap()
-        .into_iter()
-        .map(|(_, r)| r)
-        .collect()
+    ok_in(Path::new("."), args)
 }
 
 /// `generate` with `args`; returns the VCD path and the frames sent.
 fn generate(d: &Path, name: &str, args: &[&str]) -> (PathBuf, Vec<ForwardRecord>) {
-    let vcd = d.join(format!("{name}.vcd"));
-    let jl = d.join(format!("{name}.jsonl"));
-    let mut a = vec![
-        "generate",
-        "--output",
-        vcd.to_str().unwrap(),
-        "--frames-out",
-        jl.to_str().unwrap(),
-    ];
-    a.extend_from_slice(args);
-    ok(&a);
-    (vcd, records(&std::fs::read_to_string(jl).unwrap()))
+    let (vcd, text) = common::generate(d, name, args);
+    (vcd, records(&text))
 }
 
 /// `decode` of `vcd` with `args`; returns the records and the summary (stderr).
@@ -525,14 +496,18 @@ fn xy2_capture_from_another_tool() {
     assert_same(&got, &want, 0);
     assert!(summary.contains("accepted 2, errors 0"), "{summary}");
     // Without the map the default names are missing: a clear error, exit code 1.
-    let o = Command::new(BIN)
-        .args(["decode", "--protocol", "xy2", "--input"])
-        .arg(&vcd)
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("clk"), "{err}");
+    let o = run_in(
+        Path::new("."),
+        &[
+            "decode",
+            "--protocol",
+            "xy2",
+            "--input",
+            vcd.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(o.code, 1);
+    assert!(o.stderr.contains("clk"), "{}", o.stderr);
 }
 
 // ---------------------------------------------------------------- HANS-100
@@ -542,11 +517,7 @@ fn xy2_capture_from_another_tool() {
 const HANS_ACQUISITION: usize = 2;
 
 fn hans_records(text: &str) -> Vec<HansRecord> {
-    jsonl::parse::<HansRecord>(text)
-        .unwrap()
-        .into_iter()
-        .map(|(_, r)| r)
-        .collect()
+    records::<HansRecord>(text)
 }
 
 fn hans_decode(vcd: &Path, args: &[&str]) -> (Vec<HansRecord>, String) {

@@ -65,6 +65,7 @@ pub mod latency;
 mod output;
 pub mod stimulus;
 pub mod tasks;
+mod tx;
 
 use std::fmt;
 
@@ -168,13 +169,7 @@ impl ControllerInput<'_> {
 }
 
 /// The controller-side XY2-100 port bits (the firmware's port G wiring).
-pub const CONTROLLER_PINS_XY2: crate::line::sample::PinMap = crate::line::sample::PinMap {
-    sync: 0,
-    x: 1,
-    y: 2,
-    z: Some(3),
-    status: None,
-};
+pub const CONTROLLER_PINS_XY2: crate::line::sample::PinMap = crate::sim::capture::XY2_PINS;
 
 /// One chunk of head-side status buffers.
 #[derive(Debug, Clone, Copy)]

@@ -2,19 +2,19 @@
 //! encoded into the buffers the output DMA plays (BSRR words for XY2-100 / XY3-100,
 //! the HANS-100 SAI ring for HANS-100).
 //!
-//! The neutral -> wire conversion and the idle rules follow the firmware's `Encoder`
-//! (`firmware/tasks/line.rs`), which cannot be linked into a host crate.
+//! The neutral -> wire conversion and the idle rules are the firmware's:
+//! `shared::bridge::head_out::HeadTx`, which `firmware/tasks/encode.rs` calls too.
 
+use shared::bridge::head_out::HeadTx;
 use shared::bridge::{
     Bridge, Config, LinkState, Output as BridgeOutput, Protocol, Timing, ZSource,
 };
 use shared::hans::frame::{RING_BYTES, RING_SLOTS};
-use shared::model::{Axis, ForwardFrame};
-use shared::xy3::neutral::{command_frame, position_frame};
-use shared::xy3::{BackRate, FrameSize};
-use shared::{hans, xy2, xy3};
+use shared::model::ForwardFrame;
+use shared::xy3::BackRate;
+use shared::{hans, xy2};
 
-use super::{Options, PipelineCounters, PipelineError};
+use super::{tx, Options, PipelineCounters, PipelineError};
 use crate::line::drive::{self, OutPinMap};
 use crate::line::{roles, LineError};
 use crate::wave::{Ps, Waveform, PS_PER_S};
@@ -43,8 +43,6 @@ pub const HEAD_PINS_XY3: OutPinMap = OutPinMap {
 
 /// XY2-100 output ticks: two per bit at the 2 MHz bit clock.
 const XY2_TICK_HZ: u32 = 4_000_000;
-/// Idle ticks after a 32-bit XY3-100 frame (80 ticks per frame, as the firmware).
-const XY3_IDLE_32: u8 = 16;
 /// HANS-100 output bit time, ps (12.5 MHz).
 const HANS_BIT_PS: u64 = 80_000;
 
@@ -128,10 +126,8 @@ impl HeadOutput {
 
 /// The neutral -> wire encoder of the head.
 enum Encoder {
-    /// XY2-100: transmitter, position mode, Z line driven.
-    Xy2(xy2::tx::Transmitter, xy2::Mode, bool),
-    /// XY3-100: transmitter, frame size, Z line driven.
-    Xy3(xy3::tx::Transmitter, FrameSize, bool),
+    /// XY2-100 / XY3-100: the shared neutral -> BSRR words encoder.
+    Wave(HeadTx),
     /// HANS-100: the SAI ring and its writer, the last frame written (DATA words a
     /// frame lacks are held from it).
     Hans(Box<HansRing>),
@@ -243,54 +239,34 @@ impl Output {
             Protocol::Xy2 => {
                 let h = config.head.xy2;
                 let ticks = (XY2_TICK_HZ / rate) as usize;
-                let p = HEAD_PINS_XY2;
-                let pins = xy2::tx::OutPinMap {
-                    clk: p.clk,
-                    sync: p.sync,
-                    x: p.x,
-                    y: p.y,
-                    z: if z { p.z } else { None },
-                };
                 let link = xy2::LinkConfig {
                     mode: h.mode,
                     parity: h.parity,
                 };
-                let tx = xy2::tx::Transmitter::new(pins, ticks, link)
+                let (tx, out) = tx::xy2(&HEAD_PINS_XY2, z, ticks, link)
                     .map_err(|e| setup(format!("XY2-100 transmitter: {e}")))?;
                 let idle = (tx.idle_word(), tx.idle_word());
-                let out = OutPinMap {
-                    z: pins.z,
-                    ..HEAD_PINS_XY2
-                };
-                (Encoder::Xy2(tx, h.mode, z), ticks, idle, out)
+                (
+                    Encoder::Wave(HeadTx::Xy2 {
+                        tx,
+                        mode: h.mode,
+                        z,
+                    }),
+                    ticks,
+                    idle,
+                    out,
+                )
             }
             Protocol::Xy3 => {
                 let size = config.head.xy3.frame_size;
-                let idle_ticks = match size {
-                    FrameSize::Bits24 => xy3::tx::MIN_IDLE_TICKS,
-                    FrameSize::Bits32 => XY3_IDLE_32,
-                };
-                let p = HEAD_PINS_XY3;
-                let tx = xy3::tx::Transmitter::new(&xy3::tx::TxConfig {
-                    pins: xy3::tx::OutPinMap {
-                        clk: p.clk,
-                        sync: p.sync,
-                        data: [Some(p.x), Some(p.y), if z { p.z } else { None }, None, None],
-                    },
-                    size,
-                    idle_ticks,
-                })
-                .map_err(|e| setup(format!("XY3-100 transmitter: {e}")))?;
+                let (tx, out) = tx::xy3(&HEAD_PINS_XY3, z, size)
+                    .map_err(|e| setup(format!("XY3-100 transmitter: {e}")))?;
                 let ticks = tx.ticks_per_frame();
                 let mut one = vec![0u32; ticks];
                 tx.idle(&mut one)
                     .map_err(|e| setup(format!("XY3-100 idle: {e}")))?;
                 let idle = (one.first().copied().unwrap_or(0), 0);
-                let out = OutPinMap {
-                    z: if z { p.z } else { None },
-                    ..HEAD_PINS_XY3
-                };
-                (Encoder::Xy3(tx, size, z), ticks, idle, out)
+                (Encoder::Wave(HeadTx::Xy3 { tx, z }), ticks, idle, out)
             }
             Protocol::Hans => (
                 Encoder::Hans(Box::new(HansRing::new())),
@@ -486,50 +462,11 @@ impl Output {
     }
 
     /// Encodes `frame` into one slot of BSRR words, or idles the slot for `None` and
-    /// for a frame the head cannot take. Returns whether a frame was written.
+    /// for a frame the head cannot take (`HeadTx::encode`, as the firmware). Returns
+    /// whether a frame was written.
     fn encode_wave(&self, frame: Option<&ForwardFrame>, slot: &mut [u32]) -> bool {
         match &self.enc {
-            Encoder::Xy2(t, mode, z) => {
-                let f = frame.and_then(|f| {
-                    let pos = |a: Axis| f.axis(a).map(|p| xy2::Frame::from_position(p, *mode));
-                    // A command rides on X in place of the position (XY2-100 enhanced).
-                    let x = f
-                        .command
-                        .and_then(xy2::Frame::from_command)
-                        .or(pos(Axis::X))?;
-                    let z = if *z { Some(pos(Axis::Z)?) } else { None };
-                    Some(xy2::tx::TxFrame {
-                        x,
-                        y: pos(Axis::Y)?,
-                        z,
-                    })
-                });
-                match f {
-                    Some(f) if t.write_frame(slot, &f).is_ok() => true,
-                    _ => {
-                        slot.fill(t.idle_word());
-                        false
-                    }
-                }
-            }
-            Encoder::Xy3(t, size, z) => {
-                let frames = frame.and_then(|f| {
-                    let pos = |a: Axis| f.axis(a).map(|p| position_frame(p, *size));
-                    let x = match f.command {
-                        Some(c) => command_frame(&c, *size).ok(),
-                        None => pos(Axis::X),
-                    }?;
-                    let zf = if *z { Some(pos(Axis::Z)?) } else { None };
-                    Some([Some(x), Some(pos(Axis::Y)?), zf, None, None])
-                });
-                if let Some(fr) = frames {
-                    if t.encode(&fr, slot).is_ok() {
-                        return true;
-                    }
-                }
-                let _ = t.idle(slot);
-                false
-            }
+            Encoder::Wave(head) => head.encode(frame, slot),
             Encoder::Hans(_) => false,
         }
     }

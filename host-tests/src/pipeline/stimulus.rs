@@ -5,14 +5,15 @@
 use shared::bridge::{Config, Protocol, ZSource};
 use shared::hans;
 use shared::model::{Axis, Command, ForwardFrame};
+use shared::xy2;
 use shared::xy3::neutral::{command_frame, position_frame};
 use shared::xy3::FrameSize;
-use shared::{xy2, xy3};
 
-use super::{ControllerInput, HeadStatusInput, Pipeline, PipelineError, CONTROLLER_PINS_XY2};
+use super::{tx, ControllerInput, HeadStatusInput, Pipeline, PipelineError};
 use crate::line::drive::{self, OutPinMap};
-use crate::line::sample::{self, Oversampler, PartialByte};
+use crate::line::sample::Oversampler;
 use crate::line::{roles, uart};
+use crate::sim::capture;
 use crate::wave::{Ps, Waveform, PS_PER_S};
 
 /// Controller-side XY2-100 / XY3-100 generator pins (any distinct bits; the
@@ -90,18 +91,11 @@ pub fn controller_signal(
         Protocol::Xy2 => {
             let tick_ps: Ps = 250_000;
             let ticks = usize::try_from(timing.period_ps / tick_ps).map_err(err)?;
-            let pins = xy2::tx::OutPinMap {
-                clk: GEN_PINS.clk,
-                sync: GEN_PINS.sync,
-                x: GEN_PINS.x,
-                y: GEN_PINS.y,
-                z: if with_z { GEN_PINS.z } else { None },
-            };
             let link = xy2::LinkConfig {
                 mode: c.xy2.mode,
                 parity: c.xy2.parity,
             };
-            let tx = xy2::tx::Transmitter::new(pins, ticks, link).map_err(err)?;
+            let (tx, host) = tx::xy2(&GEN_PINS, with_z, ticks, link).map_err(err)?;
             let mut words = vec![0u32; ticks * frames.len()];
             for (i, (f, slot)) in frames.iter().zip(words.chunks_exact_mut(ticks)).enumerate() {
                 let pos = |a: Axis| {
@@ -125,34 +119,11 @@ pub fn controller_signal(
                     frame: *f,
                 });
             }
-            let host = OutPinMap {
-                z: pins.z,
-                ..GEN_PINS
-            };
             drive::bsrr_to_wave(&words, tick_ps as f64, timing.start_ps, &host, &[]).map_err(err)?
         }
         Protocol::Xy3 => {
             let size = timing.xy3_size;
-            let idle_ticks = match size {
-                FrameSize::Bits24 => xy3::tx::MIN_IDLE_TICKS,
-                FrameSize::Bits32 => 16,
-            };
-            let tx = xy3::tx::Transmitter::new(&xy3::tx::TxConfig {
-                pins: xy3::tx::OutPinMap {
-                    clk: GEN_PINS.clk,
-                    sync: GEN_PINS.sync,
-                    data: [
-                        Some(GEN_PINS.x),
-                        Some(GEN_PINS.y),
-                        if with_z { GEN_PINS.z } else { None },
-                        None,
-                        None,
-                    ],
-                },
-                size,
-                idle_ticks,
-            })
-            .map_err(err)?;
+            let (tx, host) = tx::xy3(&GEN_PINS, with_z, size).map_err(err)?;
             let ticks = tx.ticks_per_frame();
             let tick_ps = timing.period_ps as f64 / ticks as f64;
             let bits = u64::from(size.bits());
@@ -177,10 +148,6 @@ pub fn controller_signal(
                     frame: *f,
                 });
             }
-            let host = OutPinMap {
-                z: if with_z { GEN_PINS.z } else { None },
-                ..GEN_PINS
-            };
             // SYNC idles high before the first frame.
             drive::bsrr_to_wave(
                 &words,
@@ -341,10 +308,27 @@ fn ns_ceil(ps: Ps) -> u64 {
     ps.div_ceil(1000)
 }
 
+/// The controller's lines of `wave` the configured receiver takes: CLK, SYNC, X, Y
+/// and Z when `z.source = "input"` (other signals are left out, as the board's
+/// receiver never sees them).
+fn controller_lines(wave: &Waveform, with_z: bool) -> Waveform {
+    let roles: &[&str] = if with_z {
+        &[roles::CLK, roles::SYNC, roles::X, roles::Y, roles::Z]
+    } else {
+        &[roles::CLK, roles::SYNC, roles::X, roles::Y]
+    };
+    let mut lines = Waveform::new();
+    for s in roles.iter().filter_map(|r| wave.get(r)) {
+        lines.insert(s.clone());
+    }
+    lines
+}
+
 /// The controller's waveform as the firmware's input DMA would capture it, one item
 /// per sample (XY2-100 CLK edge, XY3-100 byte or SYNC edge, HANS-100 `u16` word),
-/// each at the time it is complete. `hans_phase` (0..1) places the HANS-100
-/// sampling clock within its first period.
+/// each at the time it is complete, sampled by the bridge-sim's capture helpers
+/// ([`crate::sim::capture`]). `hans_phase` (0..1) places the HANS-100 sampling clock
+/// within its first period.
 pub fn capture(
     config: &Config,
     wave: &Waveform,
@@ -355,18 +339,14 @@ pub fn capture(
     let mut out = Vec::new();
     match config.controller.protocol {
         Protocol::Xy2 => {
-            let pins = sample::PinMap {
-                z: if with_z { CONTROLLER_PINS_XY2.z } else { None },
-                ..CONTROLLER_PINS_XY2
-            };
-            let (words, times) = sample::xy2_port_samples(wave, &pins).map_err(err)?;
-            // The line idles with SYNC low before the first frame: one idle sample lets
-            // the receiver see the first frame's SYNC rising edge.
-            out.push(Timed {
-                t_ns: 0,
-                buffers: Buffers::Xy2(vec![0]),
-            });
-            for (w, t) in words.into_iter().zip(times) {
+            // The generated line idles with SYNC low before the first frame: one idle
+            // sample lets the receiver see the first frame's SYNC rising edge.
+            let lines = controller_lines(wave, with_z);
+            let input = capture::xy2_from_wave(&lines, capture::LeadIdle::Always).map_err(err)?;
+            if with_z && input.pins.z.is_none() {
+                return Err(err("XY2-100 capture: no Z line (z.source = \"input\")"));
+            }
+            for (w, t) in input.words.into_iter().zip(input.times) {
                 out.push(Timed {
                     t_ns: ns_ceil(t),
                     buffers: Buffers::Xy2(vec![w]),
@@ -374,20 +354,26 @@ pub fn capture(
             }
         }
         Protocol::Xy3 => {
-            let lanes: &[&str] = if with_z {
-                &[roles::X, roles::Y, roles::Z]
+            let input = capture::xy3_from_wave(&controller_lines(wave, with_z)).map_err(err)?;
+            let want: &[Axis] = if with_z {
+                &[Axis::X, Axis::Y, Axis::Z]
             } else {
-                &[roles::X, roles::Y]
+                &[Axis::X, Axis::Y]
             };
-            let cap = sample::xy3_spi(wave, lanes, PartialByte::Discard).map_err(err)?;
-            let mut items: Vec<Timed> = Vec::new();
+            if input.axes() != want {
+                return Err(err(format!(
+                    "XY3-100 capture: lines {:?}, the receiver takes {want:?}",
+                    input.axes()
+                )));
+            }
+            let cap = input.spi;
             for (i, &(_, last)) in cap.byte_times.iter().enumerate() {
                 let lines = cap
                     .bytes
                     .iter()
                     .map(|l| l.get(i).copied().into_iter().collect())
                     .collect();
-                items.push(Timed {
+                out.push(Timed {
                     t_ns: ns_ceil(last),
                     buffers: Buffers::Xy3 {
                         lines,
@@ -396,38 +382,26 @@ pub fn capture(
                 });
             }
             for (&e, &t) in cap.frame_ends.iter().zip(&cap.end_times) {
-                items.push(Timed {
+                out.push(Timed {
                     t_ns: ns_ceil(t),
                     buffers: Buffers::Xy3 {
-                        lines: vec![Vec::new(); lanes.len()],
+                        lines: vec![Vec::new(); want.len()],
                         ends: vec![e],
                     },
                 });
             }
             // Stable: a byte and an end at the same ns keep bytes first.
-            items.sort_by_key(|t| t.t_ns);
-            out = items;
+            out.sort_by_key(|t| t.t_ns);
         }
         Protocol::Hans => {
             let fs = f64::from(hans_sample_hz);
-            let start_ps = hans_phase.clamp(0.0, 1.0) * PS_PER_S / fs;
-            let end = wave.end_time() + 2_000_000;
-            let words = Oversampler {
-                fs_hz: fs,
-                start_ps,
-            }
-            .sample(wave, &roles::HANS_CHANNELS, end)
-            .map_err(err)?;
+            let (words, start_ps) =
+                capture::oversample_at(wave, &roles::HANS_CHANNELS, fs, hans_phase).map_err(err)?;
             let n = words.first().map_or(0, Vec::len);
-            for j in 0..2 * n {
+            for j in 0..n {
                 let mut rings: [Vec<u16>; 5] = Default::default();
                 for (r, ch) in rings.iter_mut().zip(&words) {
-                    let w = ch.get(j / 2).copied().unwrap_or(0);
-                    r.push(if j % 2 == 0 {
-                        (w >> 16) as u16
-                    } else {
-                        w as u16
-                    });
+                    r.push(ch.get(j).copied().unwrap_or(0));
                 }
                 let last = start_ps + (16 * (j + 1) - 1) as f64 * PS_PER_S / fs;
                 out.push(Timed {

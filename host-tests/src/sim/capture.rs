@@ -125,23 +125,37 @@ fn forward_names(lines: Lines<'_>, xy2: bool) -> (Vec<&'static str>, Vec<&'stati
 pub fn xy2(path: &Path, map: &NameMap, lines: Lines<'_>) -> Result<Xy2Input, SimError> {
     let (r, d, optional_from) = forward_names(lines, true);
     let wave = read_capture(path, &r, &d, optional_from, map)?;
-    xy2_from_wave(&wave)
+    xy2_from_wave(&wave, LeadIdle::IfSyncLow)
+}
+
+/// Whether an XY2-100 capture gets an idle sample (word 0 at t = 0) in front.
+///
+/// The receiver only trusts a frame whose SYNC rising edge it saw (a low sample, then
+/// high ones). The firmware gets samples at CLK edges only, so a line that starts
+/// idle with CLK stopped would lose its first frame although it is there whole; the
+/// idle sample stands for the line before the first CLK edge (its data bits never
+/// reach a decoded word: a frame is the 20 samples after it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LeadIdle {
+    /// When SYNC is low at t = 0 (a recorded capture shows the line as it was).
+    IfSyncLow,
+    /// Always (a generated line that idles low before its first frame).
+    Always,
 }
 
 /// XY2-100 from a waveform with role-named signals (`CLK SYNC X Y`, and `Z` when
-/// present) -> port words.
-pub fn xy2_from_wave(wave: &Waveform) -> Result<Xy2Input, SimError> {
+/// present) -> port words, with an idle sample in front as `lead` says.
+pub fn xy2_from_wave(wave: &Waveform, lead: LeadIdle) -> Result<Xy2Input, SimError> {
     let pins = PinMap {
         z: wave.get(roles::Z).and(XY2_PINS.z),
         ..XY2_PINS
     };
     let (mut words, mut times) = sample::xy2_port_samples(wave, &pins)?;
-    // The receiver only trusts a frame whose SYNC rising edge it saw (a low sample,
-    // then high ones). The firmware gets samples at CLK edges only, so a capture that
-    // starts with the line idle and CLK stopped would lose its first frame although the
-    // capture shows it whole. SYNC low at the capture start counts as one idle sample
-    // (its data bits never reach a decoded word: a frame is the 20 samples after it).
-    if wave.get(roles::SYNC).is_some_and(|s| !s.level_at(0)) {
+    let idle = match lead {
+        LeadIdle::IfSyncLow => wave.get(roles::SYNC).is_some_and(|s| !s.level_at(0)),
+        LeadIdle::Always => true,
+    };
+    if idle {
         words.insert(0, 0);
         times.insert(0, 0);
     }
@@ -262,15 +276,27 @@ pub fn hans(
     })
 }
 
-/// Samples the signals `used` of `wave` like the firmware's oversampling SPI slaves:
-/// a free-running clock of `fs_hz` with a phase inside the first sample period drawn
-/// from `seed`, `u16` words MSB first = earliest sample, up to 2 us after the signals'
-/// last change. Returns the words per signal and the first sample's time (ps).
+/// Samples the signals `used` of `wave` like the firmware's oversampling SPI slaves,
+/// with a clock phase drawn from `seed` ([`oversample_at`]).
 pub fn oversample(
     wave: &Waveform,
     used: &[&str],
     fs_hz: f64,
     seed: u64,
+) -> Result<(Vec<Vec<u16>>, f64), SimError> {
+    oversample_at(wave, used, fs_hz, (seed % 1000) as f64 / 1000.0)
+}
+
+/// Samples the signals `used` of `wave` like the firmware's oversampling SPI slaves:
+/// a free-running clock of `fs_hz` whose first sample lies `phase` (0..1, clamped)
+/// of a sample period after t = 0, `u16` words MSB first = earliest sample, up to
+/// 2 us after the signals' last change. Returns the words per signal and the first
+/// sample's time (ps).
+pub fn oversample_at(
+    wave: &Waveform,
+    used: &[&str],
+    fs_hz: f64,
+    phase: f64,
 ) -> Result<(Vec<Vec<u16>>, f64), SimError> {
     let fs_hz = crate::line::positive("sampling clock (Hz)", fs_hz)?;
     let last = used
@@ -279,7 +305,7 @@ pub fn oversample(
         .map(crate::wave::Signal::end_time)
         .max()
         .unwrap_or(0);
-    let start_ps = (seed % 1000) as f64 / 1000.0 * PS_PER_S / fs_hz;
+    let start_ps = phase.clamp(0.0, 1.0) * PS_PER_S / fs_hz;
     // 2 us of the lines' final levels after the last change: enough for a HANS-100
     // period still waiting for a missing channel to close (two words), too short for
     // the idle level to look like a frame.

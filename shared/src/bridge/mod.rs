@@ -73,6 +73,7 @@
 mod config;
 mod counters;
 mod engine;
+pub mod head_out;
 #[cfg(feature = "serde")]
 pub mod serde_impl;
 pub mod status;

@@ -1,0 +1,353 @@
+//! The last step of the forward path for a waveform head: the bridge's neutral
+//! [`ForwardFrame`] into the BSRR words of one frame slot of the head's transmitter
+//! ([`xy2::tx`] / [`xy3::tx`]). The firmware's output task and the host pipeline
+//! both call this, so what the simulation plays is what the board plays.
+//!
+//! The rule is the same on both protocols: a slot carries the whole frame or is
+//! idle. A frame the head cannot take as it is (X or Y without a position, no Z
+//! position while the Z line is driven, a command the head's protocol does not
+//! carry, a transmitter error) leaves the slot idle, so the head sees a missing
+//! frame rather than a guessed one (fail-safe policy in the README). HANS-100 heads
+//! are not a waveform output (their SAI ring is written by `hans::tx`).
+
+use crate::model::{Axis, ForwardFrame};
+use crate::xy3::neutral::{command_frame, position_frame};
+use crate::{xy2, xy3};
+
+/// A waveform head transmitter with what it needs to map neutral frames onto it.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum HeadTx {
+    /// XY2-100 / XY2-100E head.
+    Xy2 {
+        /// The transmitter (its pin map decides whether a Z line exists).
+        tx: xy2::tx::Transmitter,
+        /// The head's position width.
+        mode: xy2::Mode,
+        /// The Z line is driven: every slot needs a Z position.
+        z: bool,
+    },
+    /// XY3-100 head (frame size from the transmitter).
+    Xy3 {
+        /// The transmitter.
+        tx: xy3::tx::Transmitter,
+        /// The Z line is driven: every slot needs a Z position.
+        z: bool,
+    },
+}
+
+impl HeadTx {
+    /// Words (ticks) per frame slot.
+    pub const fn ticks_per_frame(&self) -> usize {
+        match self {
+            HeadTx::Xy2 { tx, .. } => tx.ticks_per_frame(),
+            HeadTx::Xy3 { tx, .. } => tx.ticks_per_frame(),
+        }
+    }
+
+    /// Fills `slot` with one idle frame period: XY2-100 all lines low, XY3-100 SYNC
+    /// high (its first word sets the levels, the rest leave them).
+    pub fn idle(&self, slot: &mut [u32]) {
+        match self {
+            HeadTx::Xy2 { tx, .. } => slot.fill(tx.idle_word()),
+            // The only error is a slot shorter than a frame period, which the caller
+            // sizes from `ticks_per_frame`: nothing better to write into it then.
+            HeadTx::Xy3 { tx, .. } => {
+                let _ = tx.idle(slot);
+            }
+        }
+    }
+
+    /// Encodes `frame` into `slot` (exactly [`Self::ticks_per_frame`] words), or
+    /// idles the slot for `None` and for a frame the head cannot take (module docs).
+    /// Returns whether a frame was written.
+    pub fn encode(&self, frame: Option<&ForwardFrame>, slot: &mut [u32]) -> bool {
+        let written = match (self, frame) {
+            (HeadTx::Xy2 { tx, mode, z }, Some(f)) => {
+                xy2_frame(f, *mode, *z).is_some_and(|t| tx.write_frame(slot, &t).is_ok())
+            }
+            (HeadTx::Xy3 { tx, z }, Some(f)) => {
+                xy3_frames(f, tx.size(), *z).is_some_and(|t| tx.encode(&t, slot).is_ok())
+            }
+            (_, None) => false,
+        };
+        if !written {
+            self.idle(slot);
+        }
+        written
+    }
+}
+
+/// The XY2-100 frames of one slot, or `None` if `f` lacks one of them.
+fn xy2_frame(f: &ForwardFrame, mode: xy2::Mode, z: bool) -> Option<xy2::tx::TxFrame> {
+    let pos = |a: Axis| f.axis(a).map(|p| xy2::Frame::from_position(p, mode));
+    // A command rides on X in place of the position (XY2-100 enhanced); a command
+    // XY2-100 cannot carry falls back to the X position.
+    let x = f
+        .command
+        .and_then(xy2::Frame::from_command)
+        .or_else(|| pos(Axis::X))?;
+    // A driven Z line needs a Z frame: all-zero bits would be an invalid frame on the
+    // head's Z channel.
+    let z = if z { Some(pos(Axis::Z)?) } else { None };
+    Some(xy2::tx::TxFrame {
+        x,
+        y: pos(Axis::Y)?,
+        z,
+    })
+}
+
+/// The XY3-100 frames of one slot (X, Y, Z), or `None` if `f` lacks one of them or
+/// carries a command XY3-100 cannot send.
+fn xy3_frames(f: &ForwardFrame, size: xy3::FrameSize, z: bool) -> Option<[Option<xy3::Frame>; 5]> {
+    let pos = |a: Axis| f.axis(a).map(|p| position_frame(p, size));
+    // The command frame takes X's place (XY3-100 sends commands on the X line).
+    let x = match f.command {
+        Some(c) => command_frame(&c, size).ok(),
+        None => pos(Axis::X),
+    }?;
+    let zf = if z { Some(pos(Axis::Z)?) } else { None };
+    Some([Some(x), Some(pos(Axis::Y)?), zf, None, None])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{Command, Position};
+    use crate::xy3::FrameSize;
+
+    fn pos(raw: u32) -> Option<Position> {
+        Position::from_raw(raw, 20).ok()
+    }
+
+    /// X, Y, Z present (20-bit positions), no command.
+    fn xyz() -> ForwardFrame {
+        ForwardFrame {
+            axes: [pos(0x1_2345), pos(0xA_BCDE), pos(0x8_0000), None, None],
+            ..ForwardFrame::default()
+        }
+    }
+
+    fn xy2(mode: xy2::Mode, z: bool) -> HeadTx {
+        let pins = xy2::tx::OutPinMap {
+            clk: 4,
+            sync: 5,
+            x: 6,
+            y: 7,
+            z: z.then_some(8),
+        };
+        let link = xy2::LinkConfig {
+            mode,
+            ..xy2::LinkConfig::default()
+        };
+        match xy2::tx::Transmitter::new(pins, 50, link) {
+            Ok(tx) => HeadTx::Xy2 { tx, mode, z },
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    fn xy3(size: FrameSize, z: bool) -> HeadTx {
+        let config = xy3::tx::TxConfig {
+            pins: xy3::tx::OutPinMap {
+                clk: 1,
+                sync: 0,
+                data: [Some(2), Some(3), z.then_some(10), None, None],
+            },
+            size,
+            idle_ticks: xy3::tx::MIN_IDLE_TICKS,
+        };
+        match xy3::tx::Transmitter::new(&config) {
+            Ok(tx) => HeadTx::Xy3 { tx, z },
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    /// `head.encode(frame)` into a slot pre-filled with garbage: (written, words).
+    fn run(head: &HeadTx, frame: Option<&ForwardFrame>) -> (bool, Vec<u32>) {
+        let mut slot = vec![0xDEAD_BEEF; head.ticks_per_frame()];
+        let ok = head.encode(frame, &mut slot);
+        (ok, slot)
+    }
+
+    fn idle(head: &HeadTx) -> Vec<u32> {
+        let mut slot = vec![0xDEAD_BEEF; head.ticks_per_frame()];
+        head.idle(&mut slot);
+        slot
+    }
+
+    /// What the XY2-100 transmitter itself writes for `frame`.
+    fn xy2_direct(head: &HeadTx, frame: xy2::tx::TxFrame) -> Vec<u32> {
+        let HeadTx::Xy2 { tx, .. } = head else {
+            panic!("not an XY2-100 head")
+        };
+        let mut slot = vec![0; tx.ticks_per_frame()];
+        assert_eq!(tx.write_frame(&mut slot, &frame), Ok(()));
+        slot
+    }
+
+    /// What the XY3-100 transmitter itself writes for `frames`.
+    fn xy3_direct(head: &HeadTx, frames: [Option<xy3::Frame>; 5]) -> Vec<u32> {
+        let HeadTx::Xy3 { tx, .. } = head else {
+            panic!("not an XY3-100 head")
+        };
+        let mut slot = vec![0; tx.ticks_per_frame()];
+        assert_eq!(tx.encode(&frames, &mut slot), Ok(()));
+        slot
+    }
+
+    /// No frame, or a frame without X, Y or (Z driven) Z: an idle slot. `no_z`, the
+    /// same head without a Z line, takes a frame without Z.
+    fn missing_axes_idle(z: &HeadTx, no_z: &HeadTx) {
+        let i = idle(z);
+        assert_eq!(run(z, None), (false, i.clone()));
+        for axis in [Axis::X, Axis::Y, Axis::Z] {
+            let mut f = xyz();
+            f.axes[axis.index()] = None;
+            assert_eq!(run(z, Some(&f)), (false, i.clone()), "{axis:?}");
+        }
+        let mut f = xyz();
+        f.axes[Axis::Z.index()] = None;
+        assert!(run(no_z, Some(&f)).0);
+    }
+
+    #[test]
+    fn idle_levels() {
+        let h = xy2(xy2::Mode::Standard16, true);
+        let HeadTx::Xy2 { tx, .. } = h else { panic!() };
+        assert!(idle(&h).iter().all(|&w| w == tx.idle_word()));
+        // XY3-100: SYNC (bit 0) set, CLK (bit 1) reset by the first word.
+        let w = idle(&xy3(FrameSize::Bits32, true));
+        assert_eq!(w[0] & 1, 1);
+        assert_ne!(w[0] & 1 << (1 + 16), 0);
+        assert!(w[1..].iter().all(|&x| x == 0));
+    }
+
+    #[test]
+    fn xy2_positions_and_z() {
+        let f = xyz();
+        let p = |a: Axis, m| f.axis(a).map(|p| xy2::Frame::from_position(p, m));
+        for mode in [xy2::Mode::Standard16, xy2::Mode::Extended18] {
+            for z in [false, true] {
+                let h = xy2(mode, z);
+                let (ok, words) = run(&h, Some(&f));
+                assert!(ok, "{mode:?} z={z}");
+                let want = xy2::tx::TxFrame {
+                    x: p(Axis::X, mode).unwrap(),
+                    y: p(Axis::Y, mode).unwrap(),
+                    z: if z { p(Axis::Z, mode) } else { None },
+                };
+                assert_eq!(words, xy2_direct(&h, want), "{mode:?} z={z}");
+            }
+        }
+    }
+
+    #[test]
+    fn xy2_command_replaces_x() {
+        let h = xy2(xy2::Mode::Standard16, false);
+        let command = Command::Xy2Enhanced {
+            command: 0x5A,
+            parameter: 0x0F,
+        };
+        let f = ForwardFrame {
+            command: Some(command),
+            axes: [None, pos(0x4_0000), None, None, None],
+            ..ForwardFrame::default()
+        };
+        let (ok, words) = run(&h, Some(&f));
+        assert!(ok);
+        let want = xy2::tx::TxFrame {
+            x: xy2::Frame::Command {
+                command: 0x5A,
+                parameter: 0x0F,
+            },
+            y: xy2::Frame::from_position(pos(0x4_0000).unwrap(), xy2::Mode::Standard16),
+            z: None,
+        };
+        assert_eq!(words, xy2_direct(&h, want));
+        // An XY3-100 command XY2-100 cannot carry leaves X's position in place.
+        let f = ForwardFrame {
+            command: Some(Command::Xy3(0x12)),
+            ..xyz()
+        };
+        assert_eq!(run(&h, Some(&f)), run(&h, Some(&xyz())));
+        assert!(run(&h, Some(&f)).0);
+    }
+
+    #[test]
+    fn xy2_missing_axis_or_refused_frame_idles() {
+        let h = xy2(xy2::Mode::Standard16, true);
+        let i = idle(&h);
+        missing_axes_idle(&h, &xy2(xy2::Mode::Standard16, false));
+        // A command on an 18-bit link is refused by the encoder: idle, not a guess.
+        let h18 = xy2(xy2::Mode::Extended18, false);
+        let f = ForwardFrame {
+            command: Some(Command::Xy2Enhanced {
+                command: 1,
+                parameter: 2,
+            }),
+            ..xyz()
+        };
+        assert_eq!(run(&h18, Some(&f)), (false, idle(&h18)));
+        // A slot of the wrong length: refused, filled with idle, no panic.
+        let mut short = vec![0xDEAD_BEEF; 7];
+        assert!(!h.encode(Some(&xyz()), &mut short));
+        assert!(short.iter().all(|&w| w == i[0]));
+    }
+
+    #[test]
+    fn xy3_positions_and_z() {
+        let f = xyz();
+        for size in [FrameSize::Bits24, FrameSize::Bits32] {
+            let p = |a: Axis| f.axis(a).map(|p| position_frame(p, size));
+            for z in [false, true] {
+                let h = xy3(size, z);
+                let (ok, words) = run(&h, Some(&f));
+                assert!(ok, "{size:?} z={z}");
+                let zf = if z { p(Axis::Z) } else { None };
+                let want = xy3_direct(&h, [p(Axis::X), p(Axis::Y), zf, None, None]);
+                assert_eq!(words, want, "{size:?} z={z}");
+            }
+        }
+    }
+
+    #[test]
+    fn xy3_command_replaces_x() {
+        for size in [FrameSize::Bits24, FrameSize::Bits32] {
+            let h = xy3(size, false);
+            let f = ForwardFrame {
+                command: Some(Command::Xy3(0x0123)),
+                axes: [None, pos(0x7_0000), None, None, None],
+                ..ForwardFrame::default()
+            };
+            let (ok, words) = run(&h, Some(&f));
+            assert!(ok, "{size:?}");
+            let c = command_frame(&Command::Xy3(0x0123), size).ok();
+            let y = pos(0x7_0000).map(|p| position_frame(p, size));
+            assert_eq!(words, xy3_direct(&h, [c, y, None, None, None]), "{size:?}");
+        }
+    }
+
+    #[test]
+    fn xy3_missing_axis_or_refused_frame_idles() {
+        let h = xy3(FrameSize::Bits32, true);
+        let i = idle(&h);
+        missing_axes_idle(&h, &xy3(FrameSize::Bits32, false));
+        // Commands XY3-100 cannot send: an XY2-100 one, a code wider than the field.
+        for command in [
+            Command::Xy2Enhanced {
+                command: 1,
+                parameter: 2,
+            },
+            Command::Xy3(u32::MAX),
+        ] {
+            let f = ForwardFrame {
+                command: Some(command),
+                ..xyz()
+            };
+            assert_eq!(run(&h, Some(&f)), (false, i.clone()), "{command:?}");
+        }
+        // A slot shorter than a frame period: refused, no panic.
+        let mut short = [0xDEAD_BEEF; 5];
+        assert!(!h.encode(Some(&xyz()), &mut short));
+    }
+}
