@@ -7,19 +7,20 @@
 //! The sample rings come from a small line model of their own (random frames back to
 //! back, 3 samples per bit, a different sub-bit skew per channel), and the receiver is
 //! fed one frame period's words per call, as a per-frame DMA interrupt would. Each
-//! call is followed by one output slot: `Bridge::tick`, then both encoders fill their
-//! BSRR slots from the head frame.
+//! call is followed by one output slot: `Bridge::tick`, then the firmware's head
+//! encoder (`shared::bridge::head_out::HeadTx`) fills the BSRR slots of both links
+//! from the head frame.
 
 use super::{Window, Workload};
 use crate::tests::prng::Prng;
 use core::hint::black_box;
+use shared::bridge::head_out::HeadTx;
 use shared::bridge::{Bridge, Config, HansDecode, Protocol};
 use shared::hans::rx::{HansRx, Mode, RxEvent};
 use shared::hans::Frame;
-use shared::model::{Axis, ForwardFrame};
-use shared::xy2::tx::{OutPinMap as Xy2Pins, Transmitter as Xy2Tx, TxFrame, FRAME_TICKS};
-use shared::xy2::{Frame as Xy2Frame, LinkConfig, Mode as Xy2Mode};
-use shared::xy3::neutral::position_frame;
+use shared::model::ForwardFrame;
+use shared::xy2::tx::{OutPinMap as Xy2Pins, Transmitter as Xy2Tx, FRAME_TICKS};
+use shared::xy2::{LinkConfig, Mode as Xy2Mode};
 use shared::xy3::tx::{OutPinMap as Xy3Pins, Transmitter as Xy3Tx, TxConfig};
 use shared::xy3::FrameSize;
 
@@ -90,8 +91,8 @@ fn config() -> Config {
 struct Chain {
     rx: HansRx,
     bridge: Bridge,
-    xy3: Xy3Tx,
-    xy2: Xy2Tx,
+    xy3: HeadTx,
+    xy2: HeadTx,
     xy3_slot: [u32; 66],
     xy2_slot: [u32; FRAME_TICKS],
     /// Output slots that carried a frame on both links.
@@ -127,8 +128,12 @@ impl Chain {
         Some(Chain {
             rx: HansRx::new(FS_HZ, Mode::Super).ok()?,
             bridge: Bridge::new(&config()).ok()?,
-            xy3,
-            xy2,
+            xy3: HeadTx::Xy3 { tx: xy3, z: true },
+            xy2: HeadTx::Xy2 {
+                tx: xy2,
+                mode: Xy2Mode::Standard16,
+                z: true,
+            },
             xy3_slot: [0; 66],
             xy2_slot: [0; FRAME_TICKS],
             sent: 0,
@@ -151,29 +156,12 @@ impl Chain {
         }
     }
 
-    /// Encodes the head frame's X, Y, Z on both links; false if either refused it.
+    /// Encodes the head frame on both links with the firmware's own head encoder
+    /// (`shared::bridge::head_out`, the code `firmware/tasks/encode.rs` runs, with
+    /// its command and Z checks); false if either link idled the slot.
     fn encode(&mut self, f: &ForwardFrame) -> bool {
-        let size = self.xy3.size();
-        let mut frames = [None; 5];
-        for axis in [Axis::X, Axis::Y, Axis::Z] {
-            frames[axis.index()] = f.axis(axis).map(|p| position_frame(p, size));
-        }
-        let xy3_ok = self.xy3.encode(&frames, &mut self.xy3_slot).is_ok();
-        let p16 = |axis| {
-            f.axis(axis)
-                .map(|p| Xy2Frame::from_position(p, Xy2Mode::Standard16))
-        };
-        let xy2_ok = match (p16(Axis::X), p16(Axis::Y)) {
-            (Some(x), Some(y)) => {
-                let frame = TxFrame {
-                    x,
-                    y,
-                    z: p16(Axis::Z),
-                };
-                self.xy2.write_frame(&mut self.xy2_slot, &frame).is_ok()
-            }
-            _ => false,
-        };
+        let xy3_ok = self.xy3.encode(Some(f), &mut self.xy3_slot);
+        let xy2_ok = self.xy2.encode(Some(f), &mut self.xy2_slot);
         let (a, b) = black_box((&self.xy3_slot, &self.xy2_slot));
         self.sum = self.sum.rotate_left(3) ^ a[1] ^ a[63] ^ b[0] ^ b[39];
         xy3_ok && xy2_ok
