@@ -110,23 +110,19 @@ fn check(mode: Mode, channel: usize, how: Broken) {
         assert_eq!(t.published[k], 1, "{label}: period {k} back");
     }
     let end = t.stats[periods - 1];
-    for n in 0..5 {
+    for (n, (s, events)) in end.iter().zip(t.dropped).enumerate() {
+        let ch = n + 1;
         // The bridge is told every missing period: as many events as counted.
-        assert_eq!(t.dropped[n], end[n].missing, "{label}: CH{} events", n + 1);
+        assert_eq!(events, s.missing, "{label}: CH{ch} events");
         if n == bad {
             continue;
         }
         // Healthy and unused channels: nothing missing (the acquisition before the
         // first lock is not counted), nothing failed.
-        assert_eq!(end[n].missing, 0, "{label}: CH{}", n + 1);
-        assert_eq!(end[n].check_failures, 0, "{label}: CH{}", n + 1);
+        assert_eq!(s.missing, 0, "{label}: CH{ch}");
+        assert_eq!(s.check_failures, 0, "{label}: CH{ch}");
         if used & (1 << n) == 0 {
-            assert_eq!(
-                end[n],
-                ChannelStats::default(),
-                "{label}: unused CH{}",
-                n + 1
-            );
+            assert_eq!(*s, ChannelStats::default(), "{label}: unused CH{ch}");
         }
     }
     // Every locked period accounts for the broken channel exactly once.
