@@ -229,9 +229,9 @@ pub struct ChannelStats {
     pub resyncs: u32,
     /// Frame periods in which the channel delivered no pattern at all: not aligned
     /// (dead, stuck, unplugged, or its start edge not found), or, while the frame
-    /// timing is lost after a first lock, every nominal frame period of input.
-    /// Together with the two
-    /// counts above this accounts for every frame period the channel was used in.
+    /// timing is lost after a first lock, every nominal frame period of input. With
+    /// `frames_ok` and `check_failures` it accounts for every locked frame period
+    /// the channel was used in, each exactly once.
     pub missing: u32,
 }
 
@@ -815,8 +815,8 @@ impl HansRx {
     /// then show a dead channel's count growing at the frame rate, as the issue
     /// asks, with no state here to say when to report. The cost is bounded and paid
     /// only while a channel is dead: an increment and a sink call per channel and
-    /// period (the bridge counts such an event with a saturating add and nothing
-    /// else), against ~4 000 instructions for the period's decode; no more events
+    /// period (the bridge applies its time check and counts such an event with a
+    /// saturating add, nothing else), against ~4 000 instructions for the period's decode; no more events
     /// per period than a noisy channel already gives (a check failure each period).
     /// A healthy period pays the one compare in [`HansRx::frame`]: `cargo xtask
     /// qemu` measured +1 instruction per frame in normal mode, +9 in super mode
