@@ -501,6 +501,9 @@ fn broken_hans_channel_in_each_decode_mode() {
     assert!((195..=205).contains(&k.frames_ok), "{k:?}");
     assert_eq!(p.bridge().state(), LinkState::Holding);
     assert!(!p.gate_on());
+    // The dead channel is counted missing every period while the receiver hunts.
+    let f = k.line(Line::HansChannel(1));
+    assert!(f.dropped.abs_diff(200) <= 3, "{f:?}");
     // Normal mode on another channel: unaffected.
     let (p, _, _) = hans_broken(HansDecode::Normal(1), 3, mid);
     assert!(
@@ -524,13 +527,22 @@ fn broken_hans_channel_in_each_decode_mode() {
             assert_eq!(p.bridge().state(), LinkState::Running, "{label}");
             assert!(p.gate_on(), "{label}");
             // Mid-run: the frame it cut fails and the channel loses alignment once;
-            // then it is silent (an open line is missing frames, never wrong data).
+            // then, like a channel dead from power-up, it is missing from every
+            // frame period (an open line is missing frames, never wrong data).
             let f = k.line(Line::HansChannel(ch as u8));
             let want = u32::from(from > 0);
             assert!(
                 f.check_failed <= want && f.resyncs == want,
                 "{label}: {f:?}"
             );
+            // 10 us frames: 200 periods from mid-run, 400 from power-up less the
+            // two of the acquisition (not counted: no line seen yet).
+            let dead = if from > 0 { 200 } else { 398 };
+            assert!(f.dropped.abs_diff(dead) <= 3, "{label}: {f:?}");
+            for good in (1..=5u8).filter(|&c| usize::from(c) != ch) {
+                let g = k.line(Line::HansChannel(good));
+                assert_eq!(g, Default::default(), "{label}: CH{good}");
+            }
             assert_eq!(k.line(Line::Framing), Default::default(), "{label}: {k:?}");
         }
     }

@@ -173,10 +173,14 @@ pub fn decode_head(config: &Config, out: &HeadOutput) -> Result<HeadView, Pipeli
                         start_ps: at.saturating_sub(frame_ps),
                         frame: f.to_forward(),
                     }),
-                    // Losing alignment on an idle (all-zero) stretch is not a bad
+                    // Losing alignment on an idle (all-zero) stretch, or the line
+                    // delivering no frame there (`Dropped`: missing), is not a bad
                     // frame; every other fault is.
                     hans::rx::RxEvent::Fault { kind, .. } => {
-                        if kind != shared::model::FaultKind::Resync {
+                        if !matches!(
+                            kind,
+                            shared::model::FaultKind::Resync | shared::model::FaultKind::Dropped
+                        ) {
                             view.faults += 1;
                         }
                     }

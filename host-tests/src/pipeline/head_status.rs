@@ -128,7 +128,13 @@ impl HeadStatusIn {
                         receiver.apply(&f, status);
                         seen += 1;
                     }
-                    // The head's STATUS line is not a controller channel.
+                    // The head's STATUS line is not a controller channel. A period
+                    // it delivered nothing in (`Dropped`) is not reported: the status
+                    // watchdog (`STATUS_LOST`) is what watches for a silent head.
+                    hans::rx::RxEvent::Fault {
+                        kind: FaultKind::Dropped,
+                        ..
+                    } => {}
                     hans::rx::RxEvent::Fault { kind, .. } => faults.push(status_fault(kind)),
                 });
             }

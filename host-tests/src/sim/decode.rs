@@ -503,12 +503,13 @@ fn silence(
     }
 }
 
-/// A HANS-100 fault kind in words.
-fn hans_fault(kind: FaultKind) -> &'static str {
+/// A HANS-100 fault kind in words (`channel`: the fault is one channel's).
+fn hans_fault(kind: FaultKind, channel: bool) -> &'static str {
     match kind {
         FaultKind::CheckFailed => "frame check failed",
         FaultKind::Resync => "lost alignment",
         FaultKind::Disagree => "verified channels disagree",
+        FaultKind::Dropped if channel => "missing (no pattern this period)",
         FaultKind::Dropped => "input dropped",
         FaultKind::Framing => "framing",
     }
@@ -517,7 +518,8 @@ fn hans_fault(kind: FaultKind) -> &'static str {
 /// The record of one closed frame period from its receiver events: the frame if the
 /// mode published one; else an error naming the faults if the period was rejected
 /// (a channel or the vote failed its checks, channels disagreed); `None` for events
-/// that are not about a frame (a channel losing alignment). Every fault is counted.
+/// that are not about a frame (a channel losing alignment, or missing from the
+/// period). Every fault is counted.
 fn hans_record(
     events: &[hans::rx::RxEvent],
     t_ns: Option<u64>,
@@ -530,11 +532,13 @@ fn hans_record(
             hans::rx::RxEvent::Frame(f) => frame = Some(f),
             hans::rx::RxEvent::Fault { channel, kind } => {
                 let what = match channel {
-                    Some(c) => format!("ch{c}: {}", hans_fault(kind)),
-                    None => format!("period: {}", hans_fault(kind)),
+                    Some(c) => format!("ch{c}: {}", hans_fault(kind, true)),
+                    None => format!("period: {}", hans_fault(kind, false)),
                 };
                 sum.error(&what);
-                if kind != FaultKind::Resync {
+                // A channel missing from a period is no rejected frame: the frame
+                // came from the other channels, or the gap shows as silence.
+                if !(kind == FaultKind::Resync || channel.is_some() && kind == FaultKind::Dropped) {
                     rejected.push(what);
                 }
             }

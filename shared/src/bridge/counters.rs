@@ -13,7 +13,9 @@ pub struct LineCounters {
     pub framing: u32,
     /// Losses and recoveries of alignment.
     pub resyncs: u32,
-    /// Input discarded undecoded (overrun, garbage).
+    /// Input discarded undecoded (overrun, garbage); on a HANS-100 channel: frame
+    /// periods the channel delivered no pattern for (dead, stuck, not aligned),
+    /// counted every such period.
     pub dropped: u32,
     /// Verified channels that disagreed / votes without majority.
     pub disagree: u32,

@@ -7,7 +7,9 @@ use super::status::StatusState;
 use super::supervision::{Changes, LinkState, Supervisor};
 use super::translate::{config_position, Translated, Translator};
 use super::validate::ConfigError;
-use crate::model::{Alarms, Axis, Command, ForwardFrame, LaserControl, Line, LineEvent, Position};
+use crate::model::{
+    Alarms, Axis, Command, FaultKind, ForwardFrame, LaserControl, Line, LineEvent, Position,
+};
 use crate::xy3::{self, BackRate};
 
 /// HANS-100 code 3 with power 0 and master oscillator, power amplifier and red
@@ -173,8 +175,17 @@ impl Bridge {
         match event {
             LineEvent::Fault { line, kind } => {
                 self.counters.fault(line, kind);
-                // Head-side lines say nothing about the controller's link.
-                if !matches!(line, Line::Status | Line::Backchannel) {
+                // Head-side lines say nothing about the controller's link. A HANS-100
+                // channel missing from a period (`Dropped`) is reported every period
+                // it stays dead, also when the period's frame was verified on the
+                // other channels: counted only, or one dead redundant channel would
+                // hold the recovery run at zero for good. Its loss of alignment
+                // (`Resync`) still resets the run once.
+                if !matches!(
+                    (line, kind),
+                    (Line::Status | Line::Backchannel, _)
+                        | (Line::HansChannel(_), FaultKind::Dropped)
+                ) {
                     self.sup.fault();
                 }
                 None

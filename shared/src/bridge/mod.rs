@@ -38,7 +38,9 @@
 //! `T` = `failsafe.input_timeout_us` (default 1 ms), `H` = `failsafe.hold_us`,
 //! `N` = `failsafe.recovery_frames`. A *valid frame* is `LineEvent::Frame`; a
 //! *fault* is `LineEvent::Fault` on a controller-side line (faults on `Status` /
-//! `Backchannel` are head-side: counted only). Time is applied before each event.
+//! `Backchannel` are head-side, and `Dropped` on a HANS-100 channel is a channel
+//! missing from a period the others may still deliver: counted only). Time is
+//! applied before each event.
 //!
 //! | state | event | action / next state |
 //! |---|---|---|

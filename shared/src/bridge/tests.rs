@@ -340,6 +340,51 @@ fn recovery_needs_n_consecutive_valid_frames() {
     assert_eq!(b.counters().line(Line::Status).framing, 5);
 }
 
+/// A dead redundant HANS-100 channel reports `Dropped` every period while the others
+/// deliver: every one is counted on its channel, and the link still recovers; its
+/// loss of alignment (`Resync`) breaks the run like any controller-side fault.
+#[test]
+fn a_missing_hans_channel_is_counted_without_blocking_recovery() {
+    let mut cfg = Config::default();
+    cfg.failsafe.recovery_frames = 10;
+    let (mut b, t0) = running(&cfg);
+    let mut t = t0 + 2 * MS;
+    assert_eq!(b.tick(t).state, LinkState::Holding);
+    let missing = |c| LineEvent::Fault {
+        line: Line::HansChannel(c),
+        kind: FaultKind::Dropped,
+    };
+    for i in 0..10 {
+        t += FP;
+        b.on_line_event(t, missing(2));
+        b.on_line_event(t, missing(5));
+        if i == 4 {
+            b.on_line_event(
+                t,
+                LineEvent::Fault {
+                    line: Line::HansChannel(2),
+                    kind: FaultKind::Resync,
+                },
+            );
+        }
+        b.on_line_event(t, ev(xyz16(7, 7, 7)));
+    }
+    // The resync in period 4 broke the run: 5 valid frames since.
+    assert_eq!(b.state(), LinkState::Holding);
+    for _ in 0..5 {
+        t += FP;
+        b.on_line_event(t, missing(2));
+        b.on_line_event(t, ev(xyz16(7, 7, 7)));
+    }
+    assert_eq!(b.state(), LinkState::Running);
+    let c = b.counters();
+    assert_eq!(c.line(Line::HansChannel(2)).dropped, 15);
+    assert_eq!(c.line(Line::HansChannel(2)).resyncs, 1);
+    assert_eq!(c.line(Line::HansChannel(5)).dropped, 10);
+    assert_eq!(c.line(Line::HansChannel(1)), Default::default());
+    assert_eq!(c.line(Line::Framing), Default::default());
+}
+
 #[test]
 fn faults_while_running_are_counted_never_forwarded() {
     let (mut b, t0) = running(&Config::default());

@@ -463,3 +463,5 @@ proptest! {
         assert_recovered(&sent, &published(&events), 3);
     }
 }
+
+mod dead;

@@ -66,6 +66,12 @@ impl Timing {
         self.ratio = period / BITS;
     }
 
+    /// The nominal frame period (Q16 samples): paces the counting of missing
+    /// channels while no timing is held.
+    pub fn nominal_period(&self) -> i32 {
+        self.nominal.saturating_mul(BITS)
+    }
+
     /// The next frame's start edge as predicted.
     pub fn predicted(&self) -> u32 {
         self.start.wrapping_add(self.period as u32)
