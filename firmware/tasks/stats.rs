@@ -49,7 +49,7 @@ fn line_delta(now: LineCounters, before: LineCounters) -> LineCounters {
 /// gained since `before`, then one line per input line that had faults.
 fn print_bridge(s: &BridgeSnapshot, before: &Counters) {
     let c = &s.counters;
-    let d = |now: u32, old: u32| now.saturating_sub(old);
+    let d = |now: u64, old: u64| now.saturating_sub(old);
     defmt::info!(
         "1 s bridge: {}, gate {}, alarms own {=u32:#x} reported {=u32:#x}; frames ok {}, \
          not forwarded {}, repeated {}, skipped {}, commands forwarded {} / not carried {}, \

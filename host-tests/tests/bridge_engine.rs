@@ -343,7 +343,7 @@ fn rate_mismatch(p_in: u64, slots: u64) {
     let mut b = Bridge::new(&cfg).unwrap();
     let p_out = 10 * US;
     let (mut next_in, mut n) = (0u64, 0u32);
-    let (mut repeats, mut skips) = (0u32, 0u32);
+    let (mut repeats, mut skips) = (0u64, 0u64);
     let mut newest = None;
     for k in 1..=slots {
         let t = k * p_out;
@@ -366,9 +366,9 @@ fn rate_mismatch(p_in: u64, slots: u64) {
     }
     let c = b.counters();
     assert_eq!((c.repeated, c.skipped), (repeats, skips), "p_in {p_in}");
-    assert_eq!(c.frames_ok, n);
+    assert_eq!(c.frames_ok, u64::from(n));
     // Every slot is either a new frame or a repeat; every input is sent or skipped.
-    assert_eq!(u64::from(c.frames_ok - c.skipped + c.repeated), slots);
+    assert_eq!(c.frames_ok - c.skipped + c.repeated, slots);
 }
 
 #[test]
@@ -829,7 +829,7 @@ fn fault_campaign_never_forwards_a_faulted_period() {
     }
     let c = b.counters();
     assert_eq!(
-        u64::from(c.frames_ok) + faults,
+        c.frames_ok + faults,
         u64::from(periods),
         "every period is a frame or a fault"
     );

@@ -411,15 +411,15 @@ fn clock_stop(ctrl: Protocol, head: Protocol, after: shared::bridge::AfterHold) 
         shared::bridge::AfterHold::Stop => assert_eq!(parked, 0, "{label}"),
     }
     // Hysteresis: N - 1 valid frames after the restart are counted, not forwarded.
-    let n_rec = c.failsafe.recovery_frames;
+    let n_rec = u64::from(c.failsafe.recovery_frames);
     // Lost: the frames sent while the clock stood still, the ones it cut, and at
     // most a couple while a receiver locks at start-up.
     let in_gap = stim
         .sent
         .iter()
         .filter(|s| s.start_ps + 10_000_000 > stop_ps && s.start_ps < restart_ps)
-        .count() as u32;
-    let lost = n as u32 - k.frames_ok;
+        .count() as u64;
+    let lost = n as u64 - k.frames_ok;
     assert!(
         (in_gap..=in_gap + 3).contains(&lost),
         "{label}: {in_gap} {k:?}"
@@ -530,7 +530,7 @@ fn broken_hans_channel_in_each_decode_mode() {
             // then, like a channel dead from power-up, it is missing from every
             // frame period (an open line is missing frames, never wrong data).
             let f = k.line(Line::HansChannel(ch as u8));
-            let want = u32::from(from > 0);
+            let want = u64::from(from > 0);
             assert!(
                 f.check_failed <= want && f.resyncs == want,
                 "{label}: {f:?}"
@@ -586,11 +586,11 @@ fn noise_bursts() {
             .into_iter()
             .chain((1..=5).map(Line::HansChannel))
             .chain([Line::Framing]);
-        let faults: u32 = all_lines
+        let faults: u64 = all_lines
             .map(|l| k.line(l))
             .map(|l| l.check_failed + l.framing + l.resyncs + l.disagree + l.dropped)
             .sum();
-        let lost = n as u32 - k.frames_ok;
+        let lost = n as u64 - k.frames_ok;
         assert!(lost >= 10, "{label}: the bursts must hit frames: {k:?}");
         assert!(
             faults >= lost / 2,
@@ -603,7 +603,7 @@ fn noise_bursts() {
         let mut distinct = idx.clone();
         distinct.dedup();
         assert!(
-            distinct.len() as u32 + k.skipped + lost >= (n - 20) as u32,
+            distinct.len() as u64 + k.skipped + lost >= (n - 20) as u64,
             "{label}: {} {k:?}",
             distinct.len()
         );

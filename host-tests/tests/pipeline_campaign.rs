@@ -146,14 +146,12 @@ fn a_million_faulted_frames_none_corrupted() {
         }
         let k = p.bridge_counters();
         assert_eq!(k.input_losses, 0, "block {block}: {k:?}");
-        skipped += u64::from(k.skipped);
-        rejected += u64::from(
-            [Axis::X, Axis::Y, Axis::Z]
-                .map(|a| k.line(shared::model::Line::Axis(a)).check_failed)
-                .iter()
-                .sum::<u32>()
-                + k.line(shared::model::Line::Framing).framing,
-        );
+        skipped += k.skipped;
+        rejected += [Axis::X, Axis::Y, Axis::Z]
+            .map(|a| k.line(shared::model::Line::Axis(a)).check_failed)
+            .iter()
+            .sum::<u64>()
+            + k.line(shared::model::Line::Framing).framing;
     }
     let lost = total - distinct;
     println!(
@@ -333,7 +331,7 @@ fn a_million_faulted_xy3_frames_none_corrupted() {
         }
         let k = p.bridge_counters();
         assert_eq!(k.input_losses, 0, "block {block}: {k:?}");
-        skipped += u64::from(k.skipped);
+        skipped += k.skipped;
     }
     let lost = total - distinct;
     println!(

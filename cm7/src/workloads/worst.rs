@@ -193,7 +193,7 @@ fn run(w: &mut Window) -> u32 {
     let c = chain.bridge.counters();
     let (sent, decoded) = (chain.sent - warm_sent, c.frames_ok - warm.frames_ok);
     let idle = (c.repeated - warm.repeated) + (c.skipped - warm.skipped);
-    if sent != MEASURED as u32 || decoded != MEASURED as u32 || idle != 0 {
+    if sent != MEASURED as u32 || decoded != MEASURED as u64 || idle != 0 {
         panic!(
             "worst path: {sent} sent, {decoded} decoded, {idle} repeated or skipped of {MEASURED}"
         );

@@ -692,11 +692,11 @@ impl fmt::Display for Report {
             cfg.output.frame_rate_hz,
             ms(self.end_ns)
         )?;
-        let sum = |g: fn(&shared::bridge::LineCounters) -> u32| -> u32 {
+        let sum = |g: fn(&shared::bridge::LineCounters) -> u64| -> u64 {
             lines()
                 .iter()
                 .map(|(l, _)| g(&c.line(*l)))
-                .fold(0u32, u32::saturating_add)
+                .fold(0u64, u64::saturating_add)
         };
         writeln!(
             f,

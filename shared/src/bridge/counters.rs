@@ -1,5 +1,8 @@
-//! Per-line and per-bridge counters. All counters saturate at `u32::MAX` instead of
-//! wrapping: a wrapped error counter would read as "few errors" on a bad link.
+//! Per-line and per-bridge counters. They are `u64` because a `u32` counting every
+//! frame of a 100 kHz link fills up in 12 hours, and a bridge runs for years: a
+//! counter stuck at its maximum would make the once-a-second rates read zero. They
+//! still saturate instead of wrapping (unreachable at u64): a wrapped error counter
+//! would read as "few errors" on a bad link.
 
 use crate::model::{Axis, FaultKind, Line};
 
@@ -8,17 +11,17 @@ use crate::model::{Axis, FaultKind, Line};
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LineCounters {
     /// Frames that failed their check (parity, complement, fixed bits, header).
-    pub check_failed: u32,
+    pub check_failed: u64,
     /// Truncated, overlong or misaligned frames.
-    pub framing: u32,
+    pub framing: u64,
     /// Losses and recoveries of alignment.
-    pub resyncs: u32,
+    pub resyncs: u64,
     /// Input discarded undecoded (overrun, garbage); on a HANS-100 channel: frame
     /// periods the channel delivered no pattern for (dead, stuck, not aligned),
     /// counted every such period.
-    pub dropped: u32,
+    pub dropped: u64,
     /// Verified channels that disagreed / votes without majority.
-    pub disagree: u32,
+    pub disagree: u64,
 }
 
 impl LineCounters {
@@ -34,7 +37,7 @@ impl LineCounters {
     }
 
     /// Every fault of this line.
-    pub fn total(&self) -> u32 {
+    pub fn total(&self) -> u64 {
         self.check_failed
             .saturating_add(self.framing)
             .saturating_add(self.resyncs)
@@ -53,27 +56,27 @@ const LINES: usize = 14;
 pub struct Counters {
     lines: [LineCounters; LINES],
     /// Valid frames received from the controller.
-    pub frames_ok: u32,
+    pub frames_ok: u64,
     /// Valid frames received while the link was not running (fail-safe states,
     /// recovery hysteresis): not forwarded.
-    pub not_forwarded: u32,
+    pub not_forwarded: u64,
     /// Free-running output slots that repeated the last positions (input slower).
-    pub repeated: u32,
+    pub repeated: u64,
     /// Input frames replaced by a newer one before an output slot (input faster).
-    pub skipped: u32,
+    pub skipped: u64,
     /// Commands that the head protocol cannot carry, or that were lost (skipped,
     /// received while not running).
-    pub commands_not_carried: u32,
+    pub commands_not_carried: u64,
     /// Commands forwarded to the head.
-    pub commands_forwarded: u32,
+    pub commands_forwarded: u64,
     /// Laser-control items not forwarded to the head (exposed as bridge outputs).
-    pub laser_not_carried: u32,
+    pub laser_not_carried: u64,
     /// Transitions from running into the fail-safe states.
-    pub input_losses: u32,
+    pub input_losses: u64,
     /// Transitions back to running.
-    pub recoveries: u32,
+    pub recoveries: u64,
     /// Times the head's status was declared lost.
-    pub status_losses: u32,
+    pub status_losses: u64,
 }
 
 /// Slot of a line in the counter array.
@@ -89,7 +92,7 @@ const fn slot(line: Line) -> usize {
 }
 
 /// Adds one to a saturating counter.
-pub(crate) fn bump(c: &mut u32) {
+pub(crate) fn bump(c: &mut u64) {
     *c = c.saturating_add(1);
 }
 
@@ -107,8 +110,9 @@ impl Counters {
     }
 
     /// Frames with a check failure on X, Y, Z, U, W as the bridge counted them (the
-    /// XY3-100 FRAME_ERROR_COUNT the bridge reports towards an XY3-100 controller).
+    /// XY3-100 FRAME_ERROR_COUNT the bridge reports towards an XY3-100 controller),
+    /// saturated to the packet's `u32` fields.
     pub fn axis_check_failures(&self) -> [u32; 5] {
-        Axis::ALL.map(|a| self.line(Line::Axis(a)).check_failed)
+        Axis::ALL.map(|a| u32::try_from(self.line(Line::Axis(a)).check_failed).unwrap_or(u32::MAX))
     }
 }

@@ -382,7 +382,7 @@ fn finish_frame(
     f: &mut ForwardFrame,
     held: &mut [Option<Position>; 5],
     laser_forwarded: &mut bool,
-    commands_forwarded: &mut u32,
+    commands_forwarded: &mut u64,
 ) -> Option<BackRate> {
     for (slot, held) in f.axes.iter_mut().zip(held.iter_mut()) {
         match slot {

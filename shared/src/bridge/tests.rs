@@ -536,8 +536,8 @@ fn commands_carried_or_counted() {
         let out = pass(&mut b, 0, f);
         let frame = out.frame.unwrap();
         assert_eq!(frame.command.is_some(), carried, "{c:?}->{h:?}");
-        assert_eq!(b.counters().commands_not_carried, u32::from(!carried));
-        assert_eq!(b.counters().commands_forwarded, u32::from(carried));
+        assert_eq!(b.counters().commands_not_carried, u64::from(!carried));
+        assert_eq!(b.counters().commands_forwarded, u64::from(carried));
         if cmd == rate {
             // The controller-side backchannel switches whatever the head is.
             assert_eq!(out.controller_back_rate, Some(BackRate::B921600));
@@ -580,7 +580,7 @@ fn laser_control_forwarded_or_exposed() {
         let out = pass(&mut b, 0, f);
         let forwarded = head == Protocol::Hans;
         assert_eq!(out.frame.unwrap().laser.is_some(), forwarded, "{head:?}");
-        assert_eq!(b.counters().laser_not_carried, u32::from(!forwarded));
+        assert_eq!(b.counters().laser_not_carried, u64::from(!forwarded));
         assert_eq!(out.laser.power, Some(200));
         assert!(out.laser.gate);
     }
