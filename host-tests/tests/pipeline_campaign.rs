@@ -20,7 +20,7 @@ use host_tests::pipeline::{ControllerInput, Options, Pipeline};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use shared::bridge::{Config, LinkState, Protocol, Timing, ZSource};
-use shared::model::Axis;
+use shared::model::{Axis, ForwardFrame};
 use shared::xy2;
 
 /// Frames per block (values stay unique within a block at 16 bits).
@@ -45,6 +45,46 @@ fn port_samples(words: &[u32], clk: u8) -> Vec<u16> {
     out
 }
 
+/// What one block's run forwarded, judged against the frames the controller sent.
+#[derive(Default)]
+struct Tally {
+    /// Output slots that carried a frame while the link was running.
+    forwarded: u64,
+    /// Sent frames that reached the head (each counted once, in order).
+    distinct: u64,
+    /// Forwarded frames that were never sent, or arrived out of order.
+    corrupted: u64,
+    /// Input frames the free-running output replaced by a newer one.
+    skipped: u64,
+}
+
+/// Scores a finished block: every running output slot must carry a frame the
+/// controller sent, never an older one than the slot before. The link must never
+/// have been lost (single faults only cost frames).
+fn tally(c: &Config, p: &Pipeline, frames: &[ForwardFrame], block: u32, t: &mut Tally) {
+    let want: HashMap<_, usize> = frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| (expected(c, f), i))
+        .collect();
+    let mut last = None;
+    for s in p.sent().iter().filter(|s| s.state == LinkState::Running) {
+        t.forwarded += 1;
+        match want.get(&raw(c, &s.frame)) {
+            Some(&i) if last.is_none_or(|l| i >= l) => {
+                if last != Some(i) {
+                    t.distinct += 1;
+                }
+                last = Some(i);
+            }
+            _ => t.corrupted += 1,
+        }
+    }
+    let k = p.bridge_counters();
+    assert_eq!(k.input_losses, 0, "block {block}: {k:?}");
+    t.skipped += k.skipped;
+}
+
 #[test]
 fn a_million_faulted_frames_none_corrupted() {
     let mut c = Config::default();
@@ -67,8 +107,8 @@ fn a_million_faulted_frames_none_corrupted() {
     };
     let tx = xy2::tx::Transmitter::new(pins, 2 * BITS, link).unwrap();
     let mut rng = ChaCha8Rng::seed_from_u64(0x5EED);
-    let (mut total, mut faulted, mut forwarded, mut corrupted) = (0u64, 0u64, 0u64, 0u64);
-    let (mut distinct, mut rejected, mut skipped) = (0u64, 0u64, 0u64);
+    let (mut total, mut faulted, mut rejected) = (0u64, 0u64, 0u64);
+    let mut score = Tally::default();
     for block in 0..BLOCKS {
         let frames: Vec<_> = (0..BLOCK)
             .map(|i| {
@@ -115,11 +155,6 @@ fn a_million_faulted_frames_none_corrupted() {
             samples.extend(p);
         }
         total += frames.len() as u64;
-        let want: HashMap<_, usize> = frames
-            .iter()
-            .enumerate()
-            .map(|(i, f)| (expected(&c, f), i))
-            .collect();
         let mut p = Pipeline::new(&c, Options::default()).unwrap();
         // DMA halves of 500 samples (25 frames, 250 us), each handed over when its
         // last sample came and its events spread over the next 250 us, as the
@@ -131,28 +166,20 @@ fn a_million_faulted_frames_none_corrupted() {
                 .unwrap();
         }
         p.run_until(2_000 + samples.len() as u64 * 500 + 300_000);
-        let mut last = None;
-        for s in p.sent().iter().filter(|s| s.state == LinkState::Running) {
-            forwarded += 1;
-            match want.get(&raw(&c, &s.frame)) {
-                Some(&i) if last.is_none_or(|l| i >= l) => {
-                    if last != Some(i) {
-                        distinct += 1;
-                    }
-                    last = Some(i);
-                }
-                _ => corrupted += 1,
-            }
-        }
+        tally(&c, &p, &frames, block, &mut score);
         let k = p.bridge_counters();
-        assert_eq!(k.input_losses, 0, "block {block}: {k:?}");
-        skipped += k.skipped;
         rejected += [Axis::X, Axis::Y, Axis::Z]
             .map(|a| k.line(shared::model::Line::Axis(a)).check_failed)
             .iter()
             .sum::<u64>()
             + k.line(shared::model::Line::Framing).framing;
     }
+    let Tally {
+        forwarded,
+        distinct,
+        corrupted,
+        skipped,
+    } = score;
     let lost = total - distinct;
     println!(
         "fault campaign: {total} frames, {faulted} periods with one fault, {rejected} \
@@ -238,8 +265,8 @@ fn a_million_faulted_xy3_frames_none_corrupted() {
     .unwrap();
     let tpf = tx.ticks_per_frame();
     let mut rng = ChaCha8Rng::seed_from_u64(0xB17);
-    let (mut total, mut faulted, mut corrupted, mut distinct, mut skipped) =
-        (0u64, 0u64, 0u64, 0u64, 0u64);
+    let (mut total, mut faulted) = (0u64, 0u64);
+    let mut score = Tally::default();
     for block in 0..BLOCKS {
         let frames: Vec<_> = (0..BLOCK)
             .map(|i| {
@@ -293,11 +320,6 @@ fn a_million_faulted_xy3_frames_none_corrupted() {
             }
         }
         total += frames.len() as u64;
-        let want: HashMap<_, usize> = frames
-            .iter()
-            .enumerate()
-            .map(|(i, f)| (expected(&c, f), i))
-            .collect();
         let mut p = Pipeline::new(&c, Options::default()).unwrap();
         // DMA halves of 60 bytes per line (20 frames, 200 us) with the frame ends
         // that fall inside them.
@@ -317,22 +339,14 @@ fn a_million_faulted_xy3_frames_none_corrupted() {
             p.feed_spread(t_ns, 200_000, chunk).unwrap();
         }
         p.run_until(2_000 + bytes[0].len() as u64 / 3 * 10_000 + 300_000);
-        let mut last = None;
-        for s in p.sent().iter().filter(|s| s.state == LinkState::Running) {
-            match want.get(&raw(&c, &s.frame)) {
-                Some(&i) if last.is_none_or(|l| i >= l) => {
-                    if last != Some(i) {
-                        distinct += 1;
-                    }
-                    last = Some(i);
-                }
-                _ => corrupted += 1,
-            }
-        }
-        let k = p.bridge_counters();
-        assert_eq!(k.input_losses, 0, "block {block}: {k:?}");
-        skipped += k.skipped;
+        tally(&c, &p, &frames, block, &mut score);
     }
+    let Tally {
+        distinct,
+        corrupted,
+        skipped,
+        ..
+    } = score;
     let lost = total - distinct;
     println!(
         "XY3 fault campaign: {total} frames, {faulted} periods with one fault, {lost} \
