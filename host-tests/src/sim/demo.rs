@@ -95,16 +95,7 @@ pub struct DemoReport {
 }
 
 /// A healthy galvo: no alarm, no warning (the reserved bit at its normal level).
-pub const HEALTHY: GalvoAlarms = GalvoAlarms {
-    over_temperature: false,
-    following_error: false,
-    low_speed_filtered: false,
-    power: false,
-    temperature_warning: false,
-    low_speed: false,
-    reserved_level: true,
-    communication: false,
-};
+pub const HEALTHY: GalvoAlarms = GalvoAlarms::NONE;
 
 /// A HANS-100 head's STATUS line (signal `status`): back-to-back frames alternating
 /// the actual position (code 64, the centre) and velocities with `alarms` (code 65),

@@ -35,6 +35,21 @@ pub struct GalvoAlarms {
     pub communication: bool,
 }
 
+impl GalvoAlarms {
+    /// A healthy galvo: nothing active, the reserved bit at its normal wire level 1
+    /// (which `Default` does not give: it would send the reserved bit as 0).
+    pub const NONE: GalvoAlarms = GalvoAlarms {
+        over_temperature: false,
+        following_error: false,
+        low_speed_filtered: false,
+        power: false,
+        temperature_warning: false,
+        low_speed: false,
+        reserved_level: true,
+        communication: false,
+    };
+}
+
 /// A galvo status carried in DATA1 + DATA2 (CTRL_CODE3).
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]

@@ -208,16 +208,7 @@ pub const DEVICE: &[(DeviceExt, u32)] = &[
 ];
 
 /// Galvo alarms: nothing active (the reserved level bit at its idle 1).
-pub const NORMAL: GalvoAlarms = GalvoAlarms {
-    over_temperature: false,
-    following_error: false,
-    low_speed_filtered: false,
-    power: false,
-    temperature_warning: false,
-    low_speed: false,
-    reserved_level: true,
-    communication: false,
-};
+pub const NORMAL: GalvoAlarms = GalvoAlarms::NONE;
 /// Galvo alarms: everything active.
 pub const ALL_ACTIVE: GalvoAlarms = GalvoAlarms {
     over_temperature: true,
