@@ -27,9 +27,6 @@ mod tests {
     };
     use embassy_stm32::peripherals::PA15;
     use embassy_stm32::peripherals::PG8;
-    use embassy_stm32::time::Hertz;
-    use embassy_stm32::timer::low_level::CountingMode;
-    use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
     use embassy_stm32::usart::Uart;
     use embassy_stm32::{bind_interrupts, dma, pac, peripherals, usart, Peri};
     use embassy_time::{with_timeout, Duration};
@@ -47,6 +44,7 @@ mod tests {
     use xy_bridge::board::{self, Board};
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::backchannel::{self, Backchannel};
+    use xy_bridge::drivers::oversample_clock;
     use xy_bridge::drivers::serial_tx::SerialTx;
     use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
     use xy_bridge::drivers::status_level::{StatusIn, StatusOut};
@@ -628,28 +626,6 @@ mod tests {
         bad
     }
 
-    /// Starts TIM3 CH2 at the firmware's HANS fs on PC7; runs while the result lives.
-    fn hans_fs(
-        tim: Peri<'static, peripherals::TIM3>,
-        pin: Peri<'static, peripherals::PC7>,
-    ) -> SimplePwm<'static, peripherals::TIM3> {
-        let mut pwm = SimplePwm::new(
-            tim,
-            None,
-            Some(PwmPin::new(pin, OutputType::PushPull)),
-            None,
-            None,
-            Hertz(HANS_FS_HZ),
-            CountingMode::EdgeAlignedUp,
-        );
-        {
-            let mut fs = pwm.ch2();
-            fs.set_duty_cycle_fraction(1, 2);
-            fs.enable();
-        }
-        pwm
-    }
-
     /// HANS-100 out -> HANS STATUS in, the head-side status path end to end. Jumpers:
     /// PE6 (SAI1_SD_A) -> PG14 (SPI6 MOSI), PC7 (TIM3 CH2, fs) -> PB3 (SPI6 SCK). The
     /// SAI replays 8 frames, slot 5 with one bit flipped; SPI6 oversamples 1024 words
@@ -670,7 +646,7 @@ mod tests {
         ring_bytes[flip / 8] ^= 0x80 >> (flip % 8);
 
         let s = r.hans_status_in;
-        let _fs = hans_fs(s.fs_tim, s.fs_pin);
+        let _fs = oversample_clock::start(s.fs_tim, s.fs_pin);
         let rx_ring = dma_ring!(".sram4", u16, 2048);
         let no_nss: Option<Peri<'static, PG8>> = None;
         let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();
@@ -712,7 +688,7 @@ mod tests {
         let r = board.res;
         let frame_of = |k: u32| Frame::new((k * 0x1111) & 0xF_FFFF, 0x8_0000 + k, k).unwrap();
         let s = r.hans_status_in;
-        let _fs = hans_fs(s.fs_tim, s.fs_pin);
+        let _fs = oversample_clock::start(s.fs_tim, s.fs_pin);
         let rx_ring = dma_ring!(".sram4", u16, 4096);
         let no_nss: Option<Peri<'static, PG8>> = None;
         let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();

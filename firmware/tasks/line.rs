@@ -6,19 +6,17 @@
 
 use core::sync::atomic::Ordering;
 
-use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
+use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::peripherals::PG8;
-use embassy_stm32::time::Hertz;
-use embassy_stm32::timer::low_level::CountingMode;
-use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use embassy_stm32::{pac, Peri};
 
 use super::Irqs;
-use crate::board::{HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes, HANS_FS_HZ};
+use crate::board::{HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes};
 use crate::channels::{
     RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_RAW, RAW_INPUT, STATS, XY2_HALF, XY3_HALF,
     XY3_INPUT, XY3_LINES, XY3_MARKS,
 };
+use crate::drivers::oversample_clock;
 use crate::drivers::spi_slave_rx::{Instance, RxError, SpiSlaveRx};
 use crate::drivers::sync_marks::SyncMarks;
 use crate::drivers::xy2_sampler::Xy2Sampler;
@@ -208,11 +206,11 @@ async fn xy3_session(
 }
 
 /// Every how many SPI6 halves one goes to the STATUS decoder. `shared`'s HANS-100
-/// receiver costs about 4 400 instructions per frame and channel (`shared::hans::rx`
-/// module docs), about as long as the 205 us of signal in a half take to arrive, so the
-/// thread-mode decoder takes one contiguous half in eight: the head's status is
-/// refreshed every 1.6 ms from about 18 frames (a fresh receiver locks within the
-/// first two), at roughly an eighth of the CPU.
+/// receiver costs about 2 000 instructions per frame on one channel (QEMU count,
+/// `shared::hans::rx` module docs), some 40 % of the core if every half were decoded,
+/// so the thread-mode decoder takes one contiguous half in eight: the head's status
+/// is refreshed every 1.6 ms from about 18 frames (a fresh receiver locks within the
+/// first two), at about 5 % of the CPU.
 pub const HANS_STATUS_EVERY: u32 = 8;
 
 /// HANS-100 STATUS input (head side): TIM3 CH2 makes the oversampling clock fs that
@@ -221,19 +219,7 @@ pub const HANS_STATUS_EVERY: u32 = 8;
 /// decoder (`status::hans_status`, via [`HANS_STATUS_RAW`]).
 #[embassy_executor::task]
 pub async fn hans_status_in(r: HansStatusInRes) {
-    let fs_pin = PwmPin::new(r.fs_pin, OutputType::PushPull);
-    let mut pwm = SimplePwm::new(
-        r.fs_tim,
-        None,
-        Some(fs_pin),
-        None,
-        None,
-        Hertz(HANS_FS_HZ),
-        CountingMode::EdgeAlignedUp,
-    );
-    let mut fs = pwm.ch2();
-    fs.set_duty_cycle_fraction(1, 2);
-    fs.enable();
+    let _fs = oversample_clock::start(r.fs_tim, r.fs_pin);
     let ring = dma_ring!(".sram4", u16, 2 * HANS_HALF);
     // Free-running stream: no NSS pin (the type only names SPI6's NSS pin PG8).
     let no_nss: Option<Peri<'static, PG8>> = None;
