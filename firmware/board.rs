@@ -36,8 +36,8 @@
 //! silicon revision (480 or 400 MHz core), and 100 MHz divides to every rate we need
 //! exactly:
 //! * HANS-100 out, 12.5 MHz: SAI/SPI master bit clock 100 MHz / 8.
-//! * HANS-100 in oversampling clock fs (layouts.md §3): TIM3 CH1 toggling from the
-//!   240 MHz timer clock, 240 / 6 = **40.000 MHz** (rev Y: 200 / 5 = 40.000 MHz), ratio
+//! * HANS-100 in oversampling clock fs (layouts.md §3): TIM3 CH1 (controller side) and
+//!   CH2 (head-side STATUS) as PWM from the 240 MHz timer clock, 240 / 6 = **40.000 MHz** (rev Y: 200 / 5 = 40.000 MHz), ratio
 //!   fs / 12.5 MHz = 3.2. Alternatives, if a head needs another rate: 50 MHz (ratio 4)
 //!   = an SPI master clocked from PLL2_P 100 MHz with MBR /2; 37.5 MHz (ratio 3) = PLL2_Q
 //!   changed to /8 (75 MHz) and an SPI4/5 master with MBR /2. All exact: the decoder
@@ -233,7 +233,8 @@ pub struct HansOutRes {
     pub dma: Peri<'static, DMA2_CH3>,
 }
 
-/// Head-side HANS-100 STATUS input: SPI6 slave clocked by the TIM3 fs clock.
+/// Head-side HANS-100 STATUS input: SPI6 slave clocked by the TIM3 fs clock
+/// ([`FsRes`], channel 2).
 pub struct HansStatusInRes {
     /// SPI6 (BDMA, ring in SRAM4).
     pub spi: Peri<'static, SPI6>,
@@ -243,10 +244,42 @@ pub struct HansStatusInRes {
     pub mosi: Peri<'static, PG14>,
     /// BDMA channel 0.
     pub dma: Peri<'static, BDMA_CH0>,
-    /// TIM3, fs clock generator.
-    pub fs_tim: Peri<'static, TIM3>,
-    /// TIM3_CH2 (AF2): fs out.
-    pub fs_pin: Peri<'static, PC7>,
+}
+
+/// The HANS-100 oversampling clock fs: TIM3, one timer for both HANS inputs, so
+/// both sample at the same exact rate ([`HANS_FS_HZ`]).
+pub struct FsRes {
+    /// TIM3.
+    pub tim: Peri<'static, TIM3>,
+    /// TIM3_CH1 (AF2): fs onto the controller-side SCK bus (HANS-100 controller
+    /// input, SPI1..5 SCK). Only a HANS-100 controller may drive it: for XY3-100
+    /// the pair-2 buffer drives that bus.
+    pub ctrl: Peri<'static, PC6>,
+    /// TIM3_CH2 (AF2): fs to SPI6 SCK (PB3, HANS STATUS input from the head).
+    pub status: Peri<'static, PC7>,
+}
+
+/// Controller-side HANS-100 input: the channel pins the XY3-100 lines do not share.
+/// CH3, CH4, CH5 arrive on the X, Y, Z MOSI pins of [`Xy3InRes`] (pairs 3..5), and
+/// all five SPIs, their SCK pins on the shared bus and their DMA streams are
+/// [`Xy3InRes`]'s too (one controller protocol runs at a time).
+pub struct HansInRes {
+    /// CH1 (pair 1) on SPI1_MOSI (AF5).
+    pub ch1: Peri<'static, PD7>,
+    /// CH2 (pair 2) on SPI2_MOSI (AF5). SPI2's MOSI can only be PB15 (pair 8, XY3
+    /// W), PC1 or PC3, and PC3 is the analog-only pad PC3_C on this package, so PC1:
+    /// the NUCLEO routes it to the Ethernet PHY's MDC *input* as well (the PHY never
+    /// drives it; without an MDIO frame it ignores the clocking).
+    pub ch2: Peri<'static, PC1>,
+}
+
+/// Controller-side HANS STATUS out: SAI2 block B, serial data on the pair-6 driver
+/// input (PA0, `Resources::ctrl_status`, AF10).
+pub struct HansStatusOutRes {
+    /// SAI2 (block B).
+    pub sai: Peri<'static, SAI2>,
+    /// DMA stream.
+    pub dma: Peri<'static, DMA2_CH4>,
 }
 
 /// UART7: XY3 backchannel, TX + DE to the controller-side pair-6 driver, RX from the
@@ -272,7 +305,8 @@ pub struct Resources {
     pub xy2_in: Xy2InRes,
     /// Controller XY3 in.
     pub xy3_in: Xy3InRes,
-    /// Controller-side pair 6 driver input as GPIO (XY2 STATUS level out).
+    /// Controller-side pair 6 driver input: GPIO (XY2 STATUS level out) or
+    /// SAI2_SD_B (HANS STATUS out).
     pub ctrl_status: Peri<'static, PA0>,
     /// Head waveform out.
     pub wave: WaveRes,
@@ -283,6 +317,12 @@ pub struct Resources {
     pub hans_out: HansOutRes,
     /// Head HANS STATUS in.
     pub hans_status_in: HansStatusInRes,
+    /// HANS-100 oversampling clock (both HANS inputs).
+    pub fs: FsRes,
+    /// Controller HANS-100 input (channel pins not shared with `xy3_in`).
+    pub hans_in: HansInRes,
+    /// Controller HANS STATUS out (its pin is `ctrl_status`).
+    pub hans_status_out: HansStatusOutRes,
     /// Backchannel UART.
     pub back: BackRes,
     /// Head-side line-driver enable (high = drivers on).
@@ -397,8 +437,19 @@ pub fn init() -> Board {
                 sck: p.PB3,
                 mosi: p.PG14,
                 dma: p.BDMA_CH0,
-                fs_tim: p.TIM3,
-                fs_pin: p.PC7,
+            },
+            fs: FsRes {
+                tim: p.TIM3,
+                ctrl: p.PC6,
+                status: p.PC7,
+            },
+            hans_in: HansInRes {
+                ch1: p.PD7,
+                ch2: p.PC1,
+            },
+            hans_status_out: HansStatusOutRes {
+                sai: p.SAI2,
+                dma: p.DMA2_CH4,
             },
             back: BackRes {
                 uart: p.UART7,

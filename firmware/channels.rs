@@ -19,6 +19,8 @@
 //!      LINK_RUNNING, CTRL_STATUS_OK)
 //! [H] xy2_in / xy3_in --> [H] bridge_hans_out (same inputs; HANS-100 head)
 //! [H] hans_status_in --HANS_STATUS_RAW--> hans_status --HEAD_STATUS--> bridge
+//! [H] hans_in --HANS_INPUT--> hans_decode --HANS_EVENTS--> [H] bridge loops
+//! [H] bridge loops --HANS_STATUS_OUT (frames)--> [H] hans_status_out (SAI2 B)
 //! status_level_in / backchannel RX --HEAD_STATUS--> bridge_wave_out, stats
 //! bridge_wave_out --BACK_TX (bytes), BACK_RATE--> backchannel (UART7)
 //! CTRL_STATUS_OK --> status_level_out
@@ -38,7 +40,7 @@ use embassy_sync::pipe::Pipe;
 use embassy_sync::signal::Signal;
 use embassy_sync::watch::Watch;
 use shared::bridge::{Counters, LinkState};
-use shared::model::{Alarms, HeadStatus};
+use shared::model::{Alarms, HeadStatus, LineEvent};
 use shared::xy3::BackRate;
 
 /// Overall state shown on the LEDs.
@@ -235,3 +237,37 @@ pub static STATS: Stats = Stats {
     status_faults: AtomicU32::new(0),
     output_refused: AtomicU32::new(0),
 };
+
+// HANS-100 controller side (`tasks/hans_in.rs`, `tasks/hans_status_out.rs`).
+
+/// 16-bit words per HANS-100 controller input half and channel: 8192 samples at
+/// 40 MHz = 205 us, about 20 frames.
+pub const HANS_IN_HALF: usize = 512;
+
+/// One DMA half of every HANS-100 controller channel (`layouts.md` §3).
+#[derive(Clone)]
+pub struct HansRaw {
+    /// Reception session: the input restarts every channel together (fs held low)
+    /// after an overrun, and word counts start again at 0.
+    pub session: u32,
+    /// Ring word count of `words[..][0]` within the session.
+    pub first_word: u32,
+    /// `HANS_IN_HALF` words per channel, indexed by channel number - 1; channels the
+    /// decode mode does not use stay zero and are not read.
+    pub words: [[u16; HANS_IN_HALF]; 5],
+}
+
+/// HANS-100 controller halves from `hans_in` to the thread-mode decoder
+/// (`hans_decode`). A full queue drops the half (the decoder sees the gap in
+/// `first_word`), so a decoder that cannot keep up loses input, counted, instead of
+/// delaying the line tasks.
+pub static HANS_INPUT: Channel<CriticalSectionRawMutex, HansRaw, 2> = Channel::new();
+
+/// Decoded HANS-100 controller events to the bridge loop, which drains them every
+/// output batch (or slot). The decoder waits while it is full: the bridge paces it.
+pub static HANS_EVENTS: Channel<CriticalSectionRawMutex, LineEvent, 64> = Channel::new();
+
+/// HANS STATUS frames towards a HANS-100 controller (`Bridge::hans_status_frame`),
+/// kept full by the bridge loop, written into the SAI2 ring by `hans_status_out`.
+pub static HANS_STATUS_OUT: Channel<CriticalSectionRawMutex, shared::hans::Frame, 8> =
+    Channel::new();

@@ -36,6 +36,8 @@ pub enum Controller {
     Xy2,
     /// XY3-100: SPI slaves with SYNC marks, backchannel out.
     Xy3,
+    /// HANS-100: SPI slaves oversampling at fs, HANS STATUS out on SAI2.
+    Hans,
 }
 
 /// Protocol on the head side (outputs to the scan head).
@@ -58,26 +60,20 @@ pub struct Roles {
     pub head: Head,
 }
 
-/// A configured role this firmware has no driver for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
-pub enum Unsupported {
-    /// HANS-100 controller input needs five oversampled SPI channels (issue 4 drivers).
-    HansController,
-}
-
 impl Roles {
-    /// The roles of a configuration, if the board can run them.
-    pub fn of(config: &Config) -> Result<Roles, Unsupported> {
+    /// The roles of a configuration (the board has drivers for every protocol on
+    /// either side).
+    pub fn of(config: &Config) -> Roles {
         let controller = match config.controller.protocol {
             Protocol::Xy2 => Controller::Xy2,
             Protocol::Xy3 => Controller::Xy3,
-            Protocol::Hans => return Err(Unsupported::HansController),
+            Protocol::Hans => Controller::Hans,
         };
         let head = match config.head.protocol {
             Protocol::Xy2 => Head::Xy2,
             Protocol::Xy3 => Head::Xy3,
             Protocol::Hans => Head::Hans,
         };
-        Ok(Roles { controller, head })
+        Roles { controller, head }
     }
 }

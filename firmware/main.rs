@@ -8,7 +8,7 @@
 //! configuration baked in at build time ([`config::load`], from `bridge.toml`). Every
 //! output starts idle and the gate stays off until valid input frames arrive -- after
 //! a watchdog reset too, because this is the only boot path. A configuration that
-//! fails to load, or a role without a driver, leaves the bridge in that safe state.
+//! fails to load leaves the bridge in that safe state.
 #![no_std]
 #![no_main]
 
@@ -26,8 +26,9 @@ use {defmt_rtt as _, panic_probe as _};
 
 use config::{Controller, Head, Roles};
 use drivers::backchannel::{self, Backchannel};
+use drivers::oversample_clock;
 use shared::bridge::StatusForm;
-use tasks::{bridge, bridge_hans, line, status};
+use tasks::{bridge, bridge_hans, hans_in, hans_status_out, line, status};
 
 /// Runs the line tasks at interrupt priority. UART8 is unused on this board, so its
 /// vector serves as the executor's software interrupt.
@@ -71,9 +72,9 @@ async fn main(spawner: Spawner) {
     spawner.spawn(tasks::leds(board.led_green, board.led_yellow, board.led_red).unwrap());
     spawner.spawn(tasks::stats::stats().unwrap());
 
-    // The configuration baked in by build.rs, validated again here. Without it (or
-    // for a role this board has no driver for) nothing else starts: head drivers off,
-    // laser gate off (the supervisor forces it off while no bridge runs).
+    // The configuration baked in by build.rs, validated again here. Without it
+    // nothing else starts: head drivers off, laser gate off (the supervisor forces it
+    // off while no bridge runs).
     let config = match config::load() {
         Ok(c) => c,
         Err(e) => {
@@ -84,16 +85,7 @@ async fn main(spawner: Spawner) {
             return;
         }
     };
-    let roles = match Roles::of(&config) {
-        Ok(r) => r,
-        Err(e) => {
-            defmt::error!(
-                "no driver for the configured role: {}; staying in the safe state",
-                e
-            );
-            return;
-        }
-    };
+    let roles = Roles::of(&config);
     defmt::info!("configuration: {}", roles);
 
     interrupt::UART8.set_priority(LINE_PRIORITY);
@@ -103,6 +95,21 @@ async fn main(spawner: Spawner) {
     let head_enable = Output::new(r.head_enable, Level::Low, Speed::Low);
     let hans_head = roles.head == Head::Hans;
     let _head_mux = Output::new(r.head_mux, Level::from(hans_head), Speed::Low);
+
+    // The HANS-100 oversampling clock (TIM3), with the output of each HANS input
+    // that runs; PC6 drives the controller-side SCK bus only for a HANS controller.
+    let hans_ctrl = roles.controller == Controller::Hans;
+    let (fs_ctrl, fs_status) = if hans_ctrl || hans_head {
+        let f = r.fs;
+        let fs = oversample_clock::start(
+            f.tim,
+            hans_ctrl.then_some(f.ctrl),
+            hans_head.then_some(f.status),
+        );
+        (Some(fs.ctrl), Some(fs.status))
+    } else {
+        (None, None)
+    };
 
     // Controller side.
     let back_config = backchannel::config(config.controller.xy3.back_rate.baud());
@@ -144,6 +151,22 @@ async fn main(spawner: Spawner) {
             .ok()
             .map(|u| Backchannel::duplex(u, tasks::back_ring(), roles.head == Head::Xy3))
         }
+        Controller::Hans => {
+            let mode = hans_in::mode_of(config.controller.hans.decode);
+            defmt::info!("hans in: {}", mode);
+            if let Some(fs) = fs_ctrl {
+                high.spawn(hans_in::hans_in(r.xy3_in, r.hans_in, fs, mode).unwrap());
+            }
+            spawner.spawn(hans_in::hans_decode(mode).unwrap());
+            high.spawn(hans_status_out::hans_status_out(r.hans_status_out, r.ctrl_status).unwrap());
+            let b = r.back;
+            // The pair-6 driver is always on: it carries the HANS STATUS stream.
+            core::mem::forget(Output::new(b.de, Level::High, Speed::Low));
+            (roles.head == Head::Xy3)
+                .then(|| UartRx::new(b.uart, b.rx, b.rx_dma, tasks::Irqs, back_config).ok())
+                .flatten()
+                .map(|rx| Backchannel::receive_only(rx, tasks::back_ring()))
+        }
     };
     match back {
         Some(back) => spawner.spawn(status::backchannel(back).unwrap()),
@@ -184,7 +207,9 @@ async fn main(spawner: Spawner) {
             let hans =
                 bridge_hans::bridge_hans_out(r.hans_out, config, roles.controller, head_enable);
             high.spawn(hans.unwrap());
-            high.spawn(line::hans_status_in(r.hans_status_in).unwrap());
+            if let Some(fs) = fs_status {
+                high.spawn(line::hans_status_in(r.hans_status_in, fs).unwrap());
+            }
             spawner.spawn(status::hans_status().unwrap());
         }
     }

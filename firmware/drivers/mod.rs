@@ -3,6 +3,7 @@
 //! own UART driver and says why that suffices).
 
 pub mod backchannel;
+pub mod hans_lines;
 pub mod oversample_clock;
 pub mod serial_tx;
 pub mod spi_slave_rx;

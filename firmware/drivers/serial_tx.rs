@@ -39,7 +39,8 @@ use embassy_stm32::pac::sai::vals::{
 };
 use embassy_stm32::sai::{Dma, SdPin, SubBlockInstance};
 use embassy_stm32::{interrupt, pac, peripherals, rcc, Peri};
-use shared::hans::frame::{RING_BYTES, RING_SLOTS};
+use shared::hans::frame::{write_slot, DecodeError, Frame, RING_BYTES, RING_SLOTS};
+use shared::hans::tx::LEAD_SLOTS;
 
 /// An SAI instance this driver can run.
 pub trait Instance: embassy_stm32::sai::Instance {
@@ -173,6 +174,21 @@ impl<'a> SerialTx<'a> {
         // buffer concurrently, which is the point of the design: callers only touch
         // a slot the DMA is not fetching (module docs, `next_free_slot`).
         f(unsafe { &mut *self.ring })
+    }
+
+    /// Writes `frames` into consecutive slots from the first one at least
+    /// [`LEAD_SLOTS`] ahead of the one being fetched, at most the
+    /// `RING_SLOTS - LEAD_SLOTS` slots that are (HANS STATUS out: the bridge's next
+    /// frames). Returns how many were written; frames beyond that are not.
+    pub fn write_ahead(&mut self, frames: &[Frame]) -> Result<usize, DecodeError> {
+        let sending = self.sending_slot();
+        let n = frames.len().min(RING_SLOTS - LEAD_SLOTS);
+        self.update(|buf| {
+            for (k, f) in frames.iter().take(n).enumerate() {
+                write_slot(buf, (sending + LEAD_SLOTS + k) % RING_SLOTS, f)?;
+            }
+            Ok(n)
+        })
     }
 
     /// True while the SAI reports no underrun (SR.OVRUDR; cleared after reading).

@@ -44,6 +44,7 @@ mod tests {
     use xy_bridge::board::{self, Board};
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::backchannel::{self, Backchannel};
+    use xy_bridge::drivers::hans_lines::HansLines;
     use xy_bridge::drivers::oversample_clock;
     use xy_bridge::drivers::serial_tx::SerialTx;
     use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
@@ -64,6 +65,7 @@ mod tests {
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
         DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
+        DMA2_STREAM4 => dma::InterruptHandler<peripherals::DMA2_CH4>;
         DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
         DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
         BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
@@ -646,7 +648,8 @@ mod tests {
         ring_bytes[flip / 8] ^= 0x80 >> (flip % 8);
 
         let s = r.hans_status_in;
-        let _fs = oversample_clock::start(s.fs_tim, s.fs_pin);
+        let mut fs = oversample_clock::start(r.fs.tim, None, Some(r.fs.status));
+        fs.status.run();
         let rx_ring = dma_ring!(".sram4", u16, 2048);
         let no_nss: Option<Peri<'static, PG8>> = None;
         let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();
@@ -688,7 +691,8 @@ mod tests {
         let r = board.res;
         let frame_of = |k: u32| Frame::new((k * 0x1111) & 0xF_FFFF, 0x8_0000 + k, k).unwrap();
         let s = r.hans_status_in;
-        let _fs = oversample_clock::start(s.fs_tim, s.fs_pin);
+        let mut fs = oversample_clock::start(r.fs.tim, None, Some(r.fs.status));
+        fs.status.run();
         let rx_ring = dma_ring!(".sram4", u16, 4096);
         let no_nss: Option<Peri<'static, PG8>> = None;
         let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();
@@ -726,6 +730,163 @@ mod tests {
             last = k;
         }
         assert!(distinct >= 10, "{} distinct frames", distinct);
+    }
+
+    /// HANS-100 head output -> HANS-100 controller input, all five channels. Jumpers:
+    /// PE6 (SAI1_SD_A) -> PD7 (CH1), PC1 (CH2), PC12 (CH3), PE14 (CH4), PF9 (CH5);
+    /// PC6 (TIM3 CH1, fs) -> PA5, PB10, PC10, PE12, PF7 (the SCK bus). The SAI replays
+    /// 8 frames, slot 5 with one bit flipped. `HansLines` starts the five SPIs with fs
+    /// held low, as `hans_in` does, and captures 1024 words per channel (41 frame
+    /// periods), fed to the receiver 64 words at a time as `hans_decode` does. In
+    /// super mode every channel must verify at least 28 frames on its own (so every
+    /// channel is wired and aligned), and in super, vote3 (1, 3, 5) and normal
+    /// (channel 2) mode the frames published must be the ring's, in order, never
+    /// slot 5.
+    #[test]
+    async fn hans_controller_loopback(board: Board) {
+        const WORDS: usize = 1024;
+        const CHUNK: usize = 64;
+        const BAD: usize = 5;
+        let r = board.res;
+        let frame_of = |slot: u32| {
+            Frame::new(
+                0x8_0000 ^ (slot * 0x2_4681),
+                slot * 0x1_0101,
+                0x1_E1E1 ^ slot,
+            )
+        };
+        let mut ring_bytes = [0u8; RING_BYTES];
+        for slot in 0..8u32 {
+            write_slot(&mut ring_bytes, slot as usize, &frame_of(slot).unwrap()).unwrap();
+        }
+        let flip = BAD * 125 + 60;
+        ring_bytes[flip / 8] ^= 0x80 >> (flip % 8);
+
+        let mut fs = oversample_clock::start(r.fs.tim, Some(r.fs.ctrl), None);
+        let (mut x, mut h) = (r.xy3_in, r.hans_in);
+        let rings = [
+            dma_ring!(".sram1", u16, 2 * WORDS),
+            dma_ring!(".sram1", u16, 2 * WORDS),
+            dma_ring!(".sram1", u16, 2 * WORDS),
+            dma_ring!(".sram1", u16, 2 * WORDS),
+            dma_ring!(".sram1", u16, 2 * WORDS),
+        ];
+        let [r1, r2, r3, r4, r5] = rings;
+        let rings = [
+            &mut r1[..],
+            &mut r2[..],
+            &mut r3[..],
+            &mut r4[..],
+            &mut r5[..],
+        ];
+        let mut lines =
+            HansLines::start(&mut x, &mut h, 0b1_1111, rings, Irqs, &mut fs.ctrl).unwrap();
+        let ring = dma_ring!(".sram2", u8, RING_BYTES);
+        ring.copy_from_slice(&ring_bytes);
+        let o = r.hans_out;
+        let mut channel = None;
+        let _tx = SerialTx::new(o.sai, o.sd, o.dma, Irqs, &mut channel, ring);
+
+        let mut words = [[0u16; WORDS]; 5];
+        with_timeout(WAIT, lines.read(&mut words))
+            .await
+            .unwrap()
+            .unwrap();
+
+        let slot_of = |f: &Frame| (0..8u32).find(|&s| frame_of(s).unwrap() == *f);
+        let modes = [
+            HansMode::Super,
+            HansMode::Vote3 {
+                channels: [1, 3, 5],
+            },
+            HansMode::Normal { channel: 2 },
+        ];
+        for mode in modes {
+            let mut rx = HansRx::new(HANS_FS_HZ, mode).unwrap();
+            let mut frames: heapless::Vec<Frame, 48> = heapless::Vec::new();
+            for at in (0..WORDS).step_by(CHUNK) {
+                let chunks = [0, 1, 2, 3, 4].map(|n| &words[n][at..at + CHUNK]);
+                rx.push(&chunks, &mut |ev| {
+                    if let RxEvent::Frame(f) = ev {
+                        frames.push(f).unwrap();
+                    }
+                });
+            }
+            assert!(frames.len() >= 28, "{:?}: {} frames", mode, frames.len());
+            let mut last = slot_of(&frames[0]).expect("frame not from the ring");
+            for f in &frames[1..] {
+                let slot = slot_of(f).expect("frame not from the ring");
+                assert_ne!(slot as usize, BAD, "{:?}: corrupted frame delivered", mode);
+                let step = if (last as usize + 1) % 8 == BAD { 2 } else { 1 };
+                assert_eq!(slot, (last + step) % 8, "{:?}: after slot {}", mode, last);
+                last = slot;
+            }
+            if mode == HansMode::Super {
+                for ch in 1..=5u8 {
+                    let ok = rx.stats(ch).unwrap().frames_ok;
+                    assert!(ok >= 28, "CH{} verified {} frames", ch, ok);
+                }
+            }
+        }
+    }
+
+    /// HANS STATUS out -> a HANS input. Jumpers: PA0 (SAI2_SD_B) -> PG14 (SPI6 MOSI),
+    /// PC7 (TIM3 CH2, fs) -> PB3 (SPI6 SCK). As `hans_status_out` does, the bridge's
+    /// STATUS frames (`Bridge::hans_status_frame` for a HANS-100 controller, the head
+    /// reporting over-temperature) go into SAI2 block B's ring (zeros at start) six at
+    /// a time, two slots ahead of the DMA (`SerialTx::write_ahead`), every 200 us while
+    /// SPI6 captures 2048 words (819 us). Every decoded frame must be one the bridge
+    /// made, none may fail its check (no slot is written while it is sent), and
+    /// `StatusReceiver` must read the over-temperature back.
+    #[test]
+    async fn hans_status_out_loopback(board: Board) {
+        let r = board.res;
+        let mut config = shared::bridge::Config::default();
+        config.controller.protocol = shared::bridge::Protocol::Hans;
+        let mut bridge = shared::bridge::Bridge::new(&config).unwrap();
+        bridge.head_status_mut().alarms = Alarms::TEMPERATURE;
+        let mut made: heapless::Vec<Frame, 64> = heapless::Vec::new();
+
+        let mut fs = oversample_clock::start(r.fs.tim, None, Some(r.fs.status));
+        fs.status.run();
+        let s = r.hans_status_in;
+        let rx_ring = dma_ring!(".sram4", u16, 4096);
+        let no_nss: Option<Peri<'static, PG8>> = None;
+        let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();
+        let ring = dma_ring!(".sram2", u8, RING_BYTES);
+        let o = r.hans_status_out;
+        let mut channel = None;
+        let mut out = SerialTx::new(o.sai, r.ctrl_status, o.dma, Irqs, &mut channel, ring);
+
+        let mut words = [0u16; 2048];
+        let refresh = async {
+            let end = embassy_time::Instant::now() + Duration::from_micros(1500);
+            while embassy_time::Instant::now() < end && made.len() + 6 <= made.capacity() {
+                let batch = [(); 6].map(|_| bridge.hans_status_frame());
+                assert_eq!(out.write_ahead(&batch).unwrap(), 6);
+                made.extend_from_slice(&batch).unwrap();
+                embassy_time::Timer::after_micros(200).await;
+            }
+        };
+        let capture = with_timeout(WAIT, rx.read_exact(&mut words));
+        let (_, captured) = embassy_futures::join::join(refresh, capture).await;
+        captured.unwrap().unwrap();
+
+        let mut frames = heapless::Vec::new();
+        let bad = hans_decode(&words, &mut frames);
+        assert_eq!(bad, 0, "STATUS frames failed their check");
+        assert!(frames.len() >= 28, "{} frames", frames.len());
+        let mut receiver = shared::hans::StatusReceiver::new();
+        let mut status = shared::model::HeadStatus::default();
+        for f in &frames {
+            assert!(made.contains(f), "frame not made by the bridge");
+            receiver.apply(f, &mut status);
+        }
+        assert!(
+            status.alarms.contains(Alarms::TEMPERATURE),
+            "alarms {:#x}",
+            status.alarms.0
+        );
     }
 
     /// Backchannel: UART7 TX -> RX. Jumper: PE8 -> PA8. Packets sent with `shared`'s

@@ -52,6 +52,8 @@ enum Decoder {
     Xy2(xy2::rx::Receiver),
     /// XY3-100 SPI bytes and frame-end marks ([`XY3_INPUT`]).
     Xy3(Xy3Decoder),
+    /// HANS-100: events already decoded by `hans_in::hans_decode` (thread mode).
+    Hans,
 }
 
 /// The XY3-100 receiver and where its byte count stands against the input task's.
@@ -160,6 +162,7 @@ impl Core {
                     .map_err(|_| "XY2-100 receiver pin map refused")?
             }
             Controller::Xy3 => Decoder::Xy3(Xy3Decoder::new(config)),
+            Controller::Hans => Decoder::Hans,
         };
         Ok(Core {
             bridge,
@@ -191,6 +194,7 @@ impl Core {
                     rx.feed(&raw, sink);
                 }
             }
+            Decoder::Hans => super::hans_in::take_events(sink),
         }
     }
 
@@ -235,7 +239,8 @@ impl Core {
     /// After a batch of slots (`gate`: every slot allowed the gate) at bridge time
     /// `now_ns`: the laser gate (off at once; on only after [`GATE_ON_HISTORY`]
     /// batches), the statistics snapshot, the XY2 STATUS level towards the
-    /// controller, the supervisor's heartbeat and the XY3-100 backchannel.
+    /// controller, the supervisor's heartbeat, the XY3-100 backchannel and the HANS
+    /// STATUS frames towards a HANS-100 controller.
     pub(super) fn end_batch(&mut self, gate: bool, now_ns: u64) {
         self.gate_history = (self.gate_history << 1 | u8::from(gate)) & GATE_ON_HISTORY;
         let gate_on = self.gate_history == GATE_ON_HISTORY;
@@ -253,6 +258,9 @@ impl Core {
         CTRL_STATUS_OK.store(ok, Ordering::Relaxed);
         BRIDGE_BEAT.fetch_add(1, Ordering::Relaxed);
         self.backchannel(now_ns);
+        if matches!(self.decoder, Decoder::Hans) {
+            super::hans_status_out::feed(&mut self.bridge);
+        }
     }
 
     /// XY3-100 backchannel towards the controller: a rate change waits until the

@@ -16,7 +16,7 @@ use crate::channels::{
     RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_RAW, RAW_INPUT, STATS, XY2_HALF, XY3_HALF,
     XY3_INPUT, XY3_LINES, XY3_MARKS,
 };
-use crate::drivers::oversample_clock;
+use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::{Instance, RxError, SpiSlaveRx};
 use crate::drivers::sync_marks::SyncMarks;
 use crate::drivers::xy2_sampler::Xy2Sampler;
@@ -213,13 +213,14 @@ async fn xy3_session(
 /// first two), at about 5 % of the CPU.
 pub const HANS_STATUS_EVERY: u32 = 8;
 
-/// HANS-100 STATUS input (head side): TIM3 CH2 makes the oversampling clock fs that
+/// HANS-100 STATUS input (head side): `fs` (TIM3 CH2) is the oversampling clock that
 /// clocks SPI6 through a wire from PC7 to PB3; SPI6 receives 16-bit words into a
 /// BDMA ring in SRAM4. Every [`HANS_STATUS_EVERY`]-th half goes to the thread-mode
 /// decoder (`status::hans_status`, via [`HANS_STATUS_RAW`]).
 #[embassy_executor::task]
-pub async fn hans_status_in(r: HansStatusInRes) {
-    let _fs = oversample_clock::start(r.fs_tim, r.fs_pin);
+pub async fn hans_status_in(r: HansStatusInRes, fs: Fs) {
+    let mut fs = fs;
+    fs.run();
     let ring = dma_ring!(".sram4", u16, 2 * HANS_HALF);
     // Free-running stream: no NSS pin (the type only names SPI6's NSS pin PG8).
     let no_nss: Option<Peri<'static, PG8>> = None;

@@ -8,6 +8,8 @@ pub mod bridge;
 mod bridge_core;
 pub mod bridge_hans;
 mod encode;
+pub mod hans_in;
+pub mod hans_status_out;
 mod head_word;
 pub mod line;
 pub mod stats;
@@ -36,6 +38,7 @@ bind_interrupts!(
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
         DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
+        DMA2_STREAM4 => dma::InterruptHandler<peripherals::DMA2_CH4>;
         DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
         DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
         BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;

@@ -1,0 +1,213 @@
+//! HANS-100 controller input: the five oversampled channels (`drivers::hans_lines`)
+//! -> `shared::hans::rx::HansRx` in the configured decode mode -> the bridge's
+//! [`LineEvent`]s.
+//!
+//! Two tasks, because the receiver is the most expensive code of the firmware
+//! (README "Measured figures": about 2 000 instructions per 10 us frame in normal
+//! mode, 3 250 for vote3, 4 250 for vote5 / super, against 4 800 cycles per frame
+//! at 480 MHz):
+//! * [`hans_in`] (high-priority executor) only moves DMA halves into
+//!   [`HANS_INPUT`], like the other line tasks;
+//! * [`hans_decode`] (thread mode) decodes them and queues the events in
+//!   [`HANS_EVENTS`], which the bridge loop drains like the XY2 / XY3 receivers'
+//!   events ([`take_events`], called from `bridge_core`).
+//!
+//! Decoding in the bridge loop, as for XY2 / XY3, would block it for a whole half
+//! (about 100 us in normal mode, 200 us in super mode): the HANS-100 head loop must
+//! write a slot every 10 us and the waveform loop has one queued batch of slack. In
+//! thread mode both output loops preempt the decoder, so a decoder that cannot keep
+//! up loses input halves (counted; the bridge sees the gaps as faults and its input
+//! timeout decides) instead of starving the outputs, and it yields after every half
+//! so the supervisor still feeds the watchdog.
+
+use embassy_futures::yield_now;
+use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_time::Timer;
+use heapless::Vec;
+use shared::bridge::HansDecode;
+use shared::hans::rx::{HansRx, Mode};
+use shared::model::{FaultKind, Line, LineEvent};
+
+use super::Irqs;
+use crate::board::{HansInRes, Xy3InRes, HANS_FS_HZ};
+use crate::channels::{HansRaw, Stats, HANS_EVENTS, HANS_INPUT, HANS_IN_HALF, STATS};
+use crate::drivers::hans_lines::{HansLines, CHANNELS};
+use crate::drivers::oversample_clock::Fs;
+use crate::drivers::spi_slave_rx::RxError;
+use xy_bridge::dma_ring;
+
+/// Words fed to the receiver at a time: about 2.5 frame periods, so the events of
+/// one chunk always fit [`CHUNK_EVENTS`] and reach the bridge without waiting for
+/// the rest of the half.
+const CHUNK: usize = 64;
+
+/// Events one chunk can produce at most: each of its (at most 3) frame periods
+/// gives a frame or a period fault, and per channel a check failure, resync,
+/// disagreement or missing pattern.
+const CHUNK_EVENTS: usize = 3 * (2 + 2 * CHANNELS);
+
+/// The receiver's mode for `controller.hans.decode`.
+pub fn mode_of(decode: HansDecode) -> Mode {
+    match decode {
+        HansDecode::Normal(channel) => Mode::Normal { channel },
+        HansDecode::Vote3(channels) => Mode::Vote3 { channels },
+        HansDecode::Vote5 => Mode::Vote5,
+        HansDecode::Super => Mode::Super,
+    }
+}
+
+/// HANS-100 controller input (controller side): the channels `mode` uses, on
+/// SPI1..5 clocked by fs (TIM3 CH1 on the SCK bus). Every DMA half of the used
+/// channels goes to [`HANS_INPUT`] without waiting. An overrun on any channel ends
+/// the session (the channels are no longer aligned); a new one starts them together
+/// again, and the decoder starts a new receiver on the new session.
+#[embassy_executor::task]
+pub async fn hans_in(x: Xy3InRes, h: HansInRes, fs: Fs, mode: Mode) {
+    let (mut x, mut h, mut fs) = (x, h, fs);
+    // The XY3-100 clock buffer must stay off the SCK bus: fs drives it. Forgotten
+    // on purpose: dropping an `Output` would turn the pin back into an input.
+    core::mem::forget(Output::new(
+        x.sck_buffer_oe.reborrow(),
+        Level::High,
+        Speed::Low,
+    ));
+    let rings = [
+        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
+        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
+        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
+        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
+        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
+    ];
+    let [r1, r2, r3, r4, r5] = rings;
+    let used = mode.channel_mask();
+    let mut session = 0u32;
+    loop {
+        let rings = [
+            &mut r1[..],
+            &mut r2[..],
+            &mut r3[..],
+            &mut r4[..],
+            &mut r5[..],
+        ];
+        let e = hans_session(&mut x, &mut h, &mut fs, used, rings, session).await;
+        fs.hold_low();
+        defmt::warn!("hans in: {}; restarting all channels together", e);
+        Stats::bump(&STATS.input_overruns);
+        // A failure that repeats at once must not spin the high-priority executor.
+        Timer::after_millis(1).await;
+        session = session.wrapping_add(1);
+    }
+}
+
+/// One session of [`hans_in`]: returns when a channel fails (never otherwise).
+async fn hans_session(
+    x: &mut Xy3InRes,
+    h: &mut HansInRes,
+    fs: &mut Fs,
+    used: u8,
+    rings: [&mut [u16]; CHANNELS],
+    session: u32,
+) -> RxError {
+    let mut lines = match HansLines::start(x, h, used, rings, Irqs, fs) {
+        Ok(l) => l,
+        Err(e) => return e,
+    };
+    let mut raw = HansRaw {
+        session,
+        first_word: 0,
+        words: [[0; HANS_IN_HALF]; CHANNELS],
+    };
+    loop {
+        if let Err(e) = lines.read(&mut raw.words).await {
+            return e;
+        }
+        // Never wait for the decoder: a full queue loses this half (the decoder
+        // sees the gap in `first_word`).
+        if HANS_INPUT.try_send(raw.clone()).is_ok() {
+            Stats::bump(&STATS.input_halves);
+        } else {
+            Stats::bump(&STATS.input_overruns);
+        }
+        raw.first_word = raw.first_word.wrapping_add(HANS_IN_HALF as u32);
+    }
+}
+
+/// The receiver and where its word count stands against the input task's.
+struct Decoder {
+    rx: HansRx,
+    /// The input session the receiver follows (`None` before the first half).
+    session: Option<u32>,
+    /// `first_word` the next half must have to continue the stream.
+    next_word: u32,
+}
+
+/// HANS-100 controller decoder (thread mode, see the module docs): each half from
+/// [`HANS_INPUT`] goes through `HansRx` in `mode` ([`CHUNK`] words at a time) and
+/// the events go to [`HANS_EVENTS`] in order. A half that does not continue the
+/// last one (a new session, or halves lost while the decoder was behind) starts a
+/// fresh receiver, reported as a `Dropped` fault on the framing line: the receiver's
+/// timing is only valid on a continuous stream.
+#[embassy_executor::task]
+pub async fn hans_decode(mode: Mode) {
+    let fresh = || HansRx::new(HANS_FS_HZ, mode);
+    let mut dec = match fresh() {
+        Ok(rx) => Decoder {
+            rx,
+            session: None,
+            next_word: 0,
+        },
+        Err(e) => {
+            // Not reachable: the configuration was validated and fs is in range.
+            defmt::error!("hans decode: {}; no controller input", e);
+            return;
+        }
+    };
+    let mut events: Vec<LineEvent, CHUNK_EVENTS> = Vec::new();
+    loop {
+        let raw = HANS_INPUT.receive().await;
+        if dec.session != Some(raw.session) || raw.first_word != dec.next_word {
+            if dec.session.is_some() {
+                HANS_EVENTS
+                    .send(LineEvent::Fault {
+                        line: Line::Framing,
+                        kind: FaultKind::Dropped,
+                    })
+                    .await;
+            }
+            if let Ok(rx) = fresh() {
+                dec.rx = rx;
+            }
+            dec.session = Some(raw.session);
+        }
+        dec.next_word = raw.first_word.wrapping_add(HANS_IN_HALF as u32);
+        for at in (0..HANS_IN_HALF).step_by(CHUNK) {
+            let chunk = |n: usize| {
+                raw.words
+                    .get(n)
+                    .and_then(|w| w.get(at..at + CHUNK))
+                    .unwrap_or_default()
+            };
+            let chunks = [chunk(0), chunk(1), chunk(2), chunk(3), chunk(4)];
+            dec.rx.push(&chunks, &mut |ev| {
+                if events.push(ev.to_line_event()).is_err() {
+                    // Not reachable (CHUNK_EVENTS bounds a chunk), but never silent.
+                    Stats::bump(&STATS.input_overruns);
+                }
+            });
+            for ev in events.drain(..) {
+                HANS_EVENTS.send(ev).await;
+            }
+        }
+        // `receive` does not yield when the next half is already queued: let the
+        // other thread-mode tasks (the supervisor feeding the watchdog) run.
+        yield_now().await;
+    }
+}
+
+/// The decoded events waiting for the bridge, in order (the bridge loop's input for
+/// a HANS-100 controller).
+pub(super) fn take_events(sink: &mut impl FnMut(LineEvent)) {
+    while let Ok(ev) = HANS_EVENTS.try_receive() {
+        sink(ev);
+    }
+}
