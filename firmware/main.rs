@@ -28,6 +28,7 @@ use config::{Controller, Head, Roles};
 use drivers::backchannel::{self, Backchannel};
 use drivers::oversample_clock;
 use shared::bridge::StatusForm;
+use shared::hans::rx::Mode as HansMode;
 use tasks::{bridge, bridge_hans, hans_in, hans_status_out, line, status};
 
 /// Runs the line tasks at interrupt priority. UART8 is unused on this board, so its
@@ -154,6 +155,14 @@ async fn main(spawner: Spawner) {
         Controller::Hans => {
             let mode = hans_in::mode_of(config.controller.hans.decode);
             defmt::info!("hans in: {}", mode);
+            if matches!(mode, HansMode::Vote5 | HansMode::Super) {
+                // README "Tasks and executors", HANS-100 controller cost.
+                defmt::warn!(
+                    "hans in: {} costs ~4250 instructions per 10 us frame (QEMU), more \
+                     than the core has left: expect dropped input halves",
+                    mode
+                );
+            }
             if let Some(fs) = fs_ctrl {
                 high.spawn(hans_in::hans_in(r.xy3_in, r.hans_in, fs, mode).unwrap());
             }

@@ -1,6 +1,7 @@
-//! Tasks. Thread mode (this file, [`stats`] and [`status`]): the supervisor
-//! (watchdog, laser gate, health), the status LEDs, the once-a-second statistics and
-//! the status paths. High priority ([`line`], [`bridge`], run by the `InterruptExecutor` in
+//! Tasks. Thread mode (this file, [`stats`], [`status`] and
+//! [`hans_in::hans_decode`]): the supervisor (watchdog, laser gate, health), the
+//! status LEDs, the once-a-second statistics, the status paths and the HANS-100
+//! controller decoder. High priority ([`line`], [`bridge`], run by the `InterruptExecutor` in
 //! `main.rs`): the per-DMA-half receive -> bridge -> transmit loop. Thread-mode tasks may be slow
 //! without affecting the line timing.
 
