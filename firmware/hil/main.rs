@@ -779,13 +779,14 @@ mod tests {
             &mut r4[..],
             &mut r5[..],
         ];
-        let mut lines =
-            HansLines::start(&mut x, &mut h, 0b1_1111, rings, Irqs, &mut fs.ctrl).unwrap();
+        // The line is driven before the capture starts.
         let ring = dma_ring!(".sram2", u8, RING_BYTES);
         ring.copy_from_slice(&ring_bytes);
         let o = r.hans_out;
         let mut channel = None;
         let _tx = SerialTx::new(o.sai, o.sd, o.dma, Irqs, &mut channel, ring);
+        let mut lines =
+            HansLines::start(&mut x, &mut h, 0b1_1111, rings, Irqs, &mut fs.ctrl).unwrap();
 
         let mut words = [[0u16; WORDS]; 5];
         with_timeout(WAIT, lines.read(&mut words))
@@ -833,10 +834,10 @@ mod tests {
     /// HANS STATUS out -> a HANS input. Jumpers: PA0 (SAI2_SD_B) -> PG14 (SPI6 MOSI),
     /// PC7 (TIM3 CH2, fs) -> PB3 (SPI6 SCK). As `hans_status_out` does, the bridge's
     /// STATUS frames (`Bridge::hans_status_frame` for a HANS-100 controller, the head
-    /// reporting over-temperature) go into SAI2 block B's ring (zeros at start) six at
-    /// a time, two slots ahead of the DMA (`SerialTx::write_ahead`), every 200 us while
-    /// SPI6 captures 2048 words (819 us). Every decoded frame must be one the bridge
-    /// made, none may fail its check (no slot is written while it is sent), and
+    /// reporting over-temperature) go into SAI2 block B's ring six at a time, two
+    /// slots ahead of the DMA (`SerialTx::write_ahead`), every 200 us while SPI6
+    /// captures 2048 words (819 us). Every decoded frame must be one the bridge made,
+    /// none may fail its check (no slot is written while it is sent), and
     /// `StatusReceiver` must read the over-temperature back.
     #[test]
     async fn hans_status_out_loopback(board: Board) {
@@ -847,16 +848,24 @@ mod tests {
         bridge.head_status_mut().alarms = Alarms::TEMPERATURE;
         let mut made: heapless::Vec<Frame, 64> = heapless::Vec::new();
 
+        // The ring starts full of the bridge's frames (the task starts from zeros)
+        // and the line is driven before the capture starts, so any frame failing
+        // its check would be a slot written while the DMA was sending it.
+        let ring = dma_ring!(".sram2", u8, RING_BYTES);
+        for slot in 0..8 {
+            let f = bridge.hans_status_frame();
+            write_slot(ring, slot, &f).unwrap();
+            made.push(f).unwrap();
+        }
+        let o = r.hans_status_out;
+        let mut channel = None;
+        let mut out = SerialTx::new(o.sai, r.ctrl_status, o.dma, Irqs, &mut channel, ring);
         let mut fs = oversample_clock::start(r.fs.tim, None, Some(r.fs.status));
         fs.status.run();
         let s = r.hans_status_in;
         let rx_ring = dma_ring!(".sram4", u16, 4096);
         let no_nss: Option<Peri<'static, PG8>> = None;
         let mut rx = SpiSlaveRx::new(s.spi, s.sck, s.mosi, no_nss, s.dma, Irqs, rx_ring).unwrap();
-        let ring = dma_ring!(".sram2", u8, RING_BYTES);
-        let o = r.hans_status_out;
-        let mut channel = None;
-        let mut out = SerialTx::new(o.sai, r.ctrl_status, o.dma, Irqs, &mut channel, ring);
 
         let mut words = [0u16; 2048];
         let refresh = async {
