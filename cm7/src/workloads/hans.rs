@@ -57,6 +57,16 @@ pub const WORKLOADS: &[Workload] = &[
         run: |w| rx(w, 37_500_000, Mode::Super),
     },
     Workload {
+        name: "hans rx: firmware, normal, 40 MHz, 64-word chunks",
+        frames: MEASURED as u32,
+        run: |w| rx_chunked(w, Mode::Normal { channel: 1 }),
+    },
+    Workload {
+        name: "hans rx: firmware, super, 40 MHz, 64-word chunks",
+        frames: MEASURED as u32,
+        run: |w| rx_chunked(w, Mode::Super),
+    },
+    Workload {
         name: "hans tx: slot update",
         frames: MEASURED as u32,
         run: tx,
@@ -131,6 +141,35 @@ fn rx(w: &mut Window, fs_hz: u32, mode: Mode) -> u32 {
     rx.push(&chunks(0, cap.warm), &mut sink);
     let part = chunks(cap.warm, cap.len);
     w.measure(|| rx.push(&part, &mut sink));
+    sum
+}
+
+/// The firmware's HANS-100 controller decoder (`tasks/hans_in.rs`): fs = 40 MHz
+/// (TIM3, 3.2 samples per bit) and the words pushed 64 at a time, the chunk
+/// `hans_decode` feeds so that each chunk's events reach the bridge at once.
+fn rx_chunked(w: &mut Window, mode: Mode) -> u32 {
+    const FS_HZ: u32 = 40_000_000;
+    const CHUNK: usize = 64;
+    let cap = black_box(capture(FS_HZ));
+    let Ok(mut rx) = HansRx::new(FS_HZ, mode) else {
+        return 0;
+    };
+    let mut sum = 0u32;
+    let mut sink = |e: RxEvent| {
+        if let RxEvent::Frame(f) = e {
+            sum = sum.wrapping_add(f.data1() ^ f.data3()).wrapping_add(1);
+        }
+    };
+    let chunks = |from: usize, to: usize| cap.words.each_ref().map(|c| &c[from..to]);
+    rx.push(&chunks(0, cap.warm), &mut sink);
+    w.measure(|| {
+        let mut at = cap.warm;
+        while at < cap.len {
+            let to = (at + CHUNK).min(cap.len);
+            rx.push(&chunks(at, to), &mut sink);
+            at = to;
+        }
+    });
     sum
 }
 
