@@ -158,8 +158,8 @@ async fn main(spawner: Spawner) {
             if matches!(mode, HansMode::Vote5 | HansMode::Super) {
                 // README "Tasks and executors", HANS-100 controller cost.
                 defmt::warn!(
-                    "hans in: {} costs ~4250 instructions per 10 us frame (QEMU), more \
-                     than the core has left: expect dropped input halves",
+                    "hans in: {} costs 4200..4400 instructions per 10 us frame (QEMU), \
+                     more than the core has left: expect dropped input halves",
                     mode
                 );
             }
