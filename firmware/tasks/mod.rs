@@ -7,6 +7,7 @@
 pub mod bridge;
 mod bridge_core;
 pub mod bridge_hans;
+mod ctrl_word;
 mod encode;
 mod head_word;
 pub mod line;
@@ -38,6 +39,7 @@ bind_interrupts!(
         DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
         DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
         DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
+        DMA2_STREAM7 => dma::InterruptHandler<peripherals::DMA2_CH7>;
         BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
         EXTI4 => SyncEdgeHandler;
         UART7 => usart::InterruptHandler<peripherals::UART7>;
