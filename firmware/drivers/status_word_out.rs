@@ -33,9 +33,24 @@
 //! The ring length is a multiple of the sampler ring's and of 20 (a status frame). So
 //! the sampler index of an edge is its status index mod the sampler length, and a
 //! ring filled with back-to-back frames keeps its phase lap after lap: only a new
-//! status value or a new frame phase needs writes (`tasks/ctrl_word.rs` finds the
-//! phase from the SYNC pattern in the sampler halves). The writer touches only whole
-//! frames at least [`GUARD`] edges ahead of the DMA ([`StatusWordOut::position`]).
+//! status value or a new frame phase needs writes. [`StatusWordOut::refresh`] runs
+//! after every sampler half:
+//! * **Phase**: the newest well-formed frame end in the half (SYNC high for exactly
+//!   19 samples, then low: `shared::xy2::rx`'s framing) is the edge on which the
+//!   status frame's first bit (bit 19) is written; the controller reads it one edge
+//!   later, with the first bit of its next frame (bridge-sim's `status_word_signal`
+//!   does the same). Its status index is the DMA's position minus the edges since
+//!   that sample. A half whose ring position is unknown (a sampler overrun that could
+//!   not be resynchronised) or that is more than half a sampler ring old keeps the
+//!   last phase.
+//! * **Writes**: only when the frame or the phase changed: a sweep writes every whole
+//!   frame from [`GUARD`] edges ahead of the DMA up to where it would lap, so a frame
+//!   is never changed while it may be playing; a second sweep at least
+//!   [`SWEEP_APART`] edges later writes the frames the first one left out.
+//!
+//! Frames sent while the phase changes (the controller paused mid-frame, or runs its
+//! clock between frames: the phase then moves every frame) are broken; the
+//! controller's own check on the status frame rejects them.
 
 use core::marker::PhantomData;
 
@@ -52,9 +67,17 @@ const TIM1_COM_REQUEST: Request = 17;
 /// Bits of a status frame.
 pub const FRAME_BITS: usize = 20;
 
-/// Edges the writer stays ahead of the DMA: 32 us at 2 MHz, far more than one frame
-/// write takes; a whole-ring refill runs forward from here and never meets the DMA.
+/// Edges the writer stays ahead of the DMA: 32 us at 2 MHz, far more than a sweep
+/// takes to get past the first frames; a sweep runs forward from here and never meets
+/// the DMA.
 pub const GUARD: usize = 64;
+/// Edges between the two sweeps after a change, so that the frames the first one
+/// left out (near the DMA) are out of the second one's guard.
+pub const SWEEP_APART: usize = GUARD + 2 * FRAME_BITS;
+/// Sweeps after a change.
+const SWEEPS: u8 = 2;
+/// High SYNC samples of a well-formed frame.
+const SYNC_HIGH: usize = 19;
 
 /// Why the status word output cannot run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -83,22 +106,39 @@ impl core::fmt::Display for StatusOutError {
     }
 }
 
+/// What the ring is being brought to: the frame words and the phase (status ring
+/// index mod 20 of a frame's first bit).
+#[derive(Clone, Copy, PartialEq, Eq)]
+struct Content {
+    words: [u32; FRAME_BITS],
+    phase: usize,
+}
+
 /// The running STATUS word output.
 pub struct StatusWordOut<'d> {
     transfer: Transfer<'d>,
     ring: *mut u32,
     len: usize,
+    sampler_len: usize,
+    sync_mask: u16,
+    /// Phase of the controller's frames (status ring index mod 20), once found.
+    phase: Option<usize>,
+    content: Option<Content>,
+    /// Sweeps still due for `content`, and the DMA position at the last one.
+    sweeps_due: u8,
+    last_sweep: usize,
     _ring: PhantomData<&'d mut [u32]>,
     _pin: Output<'d>,
 }
 
 impl<'d> StatusWordOut<'d> {
-    /// Hangs the STATUS ring on `sampler`'s edges (steps 1..3). `pin` must be bit
-    /// `k` of `port` for the words the caller writes; `slot` keeps the DMA channel
-    /// for as long as the transfer borrows it.
+    /// Hangs the STATUS ring on `sampler`'s edges (steps 1..3). `pin` must be the
+    /// port bit the caller's frame words drive; `sync` is the SYNC bit in the
+    /// sampler's port samples; `slot` keeps the DMA channel for as long as the
+    /// transfer borrows it.
     #[expect(
         clippy::too_many_arguments,
-        reason = "the sampler, the stream, its interrupt and slot, the port, pin, ring and idle word"
+        reason = "the sampler, the stream, its interrupt and slot, the port, pin, ring, idle word, SYNC bit"
     )]
     pub fn new<D: ChannelInstance>(
         sampler: &mut Xy2Sampler<'d>,
@@ -109,13 +149,18 @@ impl<'d> StatusWordOut<'d> {
         pin: Output<'d>,
         ring: &'d mut [u32],
         idle: u32,
+        sync: u8,
     ) -> Result<Self, StatusOutError> {
         if sampler.started() {
             return Err(StatusOutError::SamplerStarted);
         }
         let sampler_len = sampler.ring_len();
         let len = ring.len();
-        if len == 0 || sampler_len == 0 || len % sampler_len != 0 || len % FRAME_BITS != 0 {
+        if len == 0
+            || sampler_len == 0
+            || !len.is_multiple_of(sampler_len)
+            || !len.is_multiple_of(FRAME_BITS)
+        {
             return Err(StatusOutError::RingLength {
                 len,
                 sampler: sampler_len,
@@ -151,14 +196,21 @@ impl<'d> StatusWordOut<'d> {
             transfer,
             ring: ring as *mut u32,
             len,
+            sampler_len,
+            sync_mask: 1u16.checked_shl(u32::from(sync)).unwrap_or(0),
+            phase: None,
+            content: None,
+            sweeps_due: 0,
+            last_sweep: 0,
             _ring: PhantomData,
             _pin: pin,
         })
     }
 
-    /// Ring length in words.
-    pub fn len(&self) -> usize {
-        self.len
+    /// The frame phase found so far (status ring index mod 20 of a frame's first
+    /// bit), `None` before the first well-formed frame.
+    pub fn phase(&self) -> Option<usize> {
+        self.phase
     }
 
     /// Ring index of the word the next edge plays (DMA_SxNDTR counts `len` down to 1
@@ -168,9 +220,62 @@ impl<'d> StatusWordOut<'d> {
         (self.len + self.len - remaining.min(self.len)) % self.len
     }
 
-    /// Writes `words` (one status frame) at ring indices `start..start + 20` (mod the
-    /// length). The caller keeps them [`GUARD`] edges away from [`Self::position`].
-    pub fn write_frame(&mut self, start: usize, words: &[u32; FRAME_BITS]) {
+    /// After a sampler half (`half`, starting at sampler ring index `start`, `None`
+    /// if unknown): follows the controller's frame phase and brings the ring to
+    /// back-to-back copies of `words`, the BSRR words of one status frame, bit 19
+    /// first (`shared::xy2::status_line::StatusOut::word_frame`); module docs.
+    pub fn refresh(&mut self, half: &[u16], start: Option<usize>, words: &[u32; FRAME_BITS]) {
+        let p = self.position();
+        if let (Some(start), Some(end)) = (start, self.frame_end(half)) {
+            // Edges since the half's last sample and since the frame end; both are
+            // below a sampler ring while the half is fresh.
+            let sl = self.sampler_len;
+            let half_end = (start + half.len()) % sl;
+            let since_half = (p + sl - half_end) % sl;
+            if since_half < sl / 2 {
+                let since_end = since_half + half.len() - end;
+                self.phase = Some((p + self.len - since_end % self.len) % FRAME_BITS);
+            }
+        }
+        let Some(phase) = self.phase else { return };
+        let want = Content {
+            words: *words,
+            phase,
+        };
+        if self.content != Some(want) {
+            self.content = Some(want);
+            self.sweeps_due = SWEEPS;
+        }
+        let apart = (p + self.len - self.last_sweep) % self.len;
+        if self.sweeps_due == SWEEPS || (self.sweeps_due > 0 && apart >= SWEEP_APART) {
+            self.sweep(want, p);
+            self.last_sweep = p;
+            self.sweeps_due -= 1;
+        }
+    }
+
+    /// Index in `half` of the newest well-formed frame end (SYNC low after exactly
+    /// 19 high samples that follow a low one), scanning back from the end.
+    fn frame_end(&self, half: &[u16]) -> Option<usize> {
+        let high = |i: usize| half.get(i).is_some_and(|s| s & self.sync_mask != 0);
+        (SYNC_HIGH + 1..half.len())
+            .rev()
+            .find(|&i| !high(i) && !high(i - SYNC_HIGH - 1) && (i - SYNC_HIGH..i).all(high))
+    }
+
+    /// Writes `c` into every whole frame slot from [`GUARD`] edges ahead of the DMA
+    /// (at `p`) up to where it would lap.
+    fn sweep(&mut self, c: Content, p: usize) {
+        // Offsets from `p`; the first frame start at or after GUARD.
+        let mut k = GUARD + (c.phase + FRAME_BITS - (p + GUARD) % FRAME_BITS) % FRAME_BITS;
+        while k + FRAME_BITS <= self.len {
+            self.write_frame((p + k) % self.len, &c.words);
+            k += FRAME_BITS;
+        }
+    }
+
+    /// Writes one status frame at ring indices `start..start + 20` (mod the length).
+    fn write_frame(&mut self, start: usize, words: &[u32; FRAME_BITS]) {
         for (k, &w) in words.iter().enumerate() {
             let i = (start + k) % self.len;
             // SAFETY: `i < len`, inside the ring borrowed for 'd; `&mut self` is the

@@ -117,7 +117,7 @@ impl StatusWordIn {
     fn thin(&mut self, samples: &mut [u16]) -> usize {
         let mut kept = 0;
         for i in 0..samples.len() {
-            if self.tick % 2 == 0 {
+            if self.tick.is_multiple_of(2) {
                 // kept <= i: compacting in place never overtakes the reader.
                 if let Some(s) = samples.get(i).copied() {
                     if let Some(d) = samples.get_mut(kept) {

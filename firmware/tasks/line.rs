@@ -69,7 +69,6 @@ const STATUS_WORD_RING: usize = 2 * XY2_HALF;
 pub async fn xy2_in(r: Xy2InRes, word: Option<WordOut>) {
     let ring = dma_ring!(".sram2", u16, 2 * XY2_HALF);
     let mut sampler = Xy2Sampler::prepare(r.tim, r.clk, r.dma, Irqs, pac::GPIOG, ring);
-    let sampler_len = sampler.ring_len();
     let mut ctrl_word = None;
     if let Some(w) = word {
         let slot = STATUS_DMA_SLOT.init(None);
@@ -83,13 +82,16 @@ pub async fn xy2_in(r: Xy2InRes, word: Option<WordOut>) {
             w.pin,
             status_ring,
             ctrl_word::idle_word(),
+            ctrl_word::SYNC_BIT,
         );
-        match out.map_err(|e| defmt::error!("xy2 status word out: {}", e)) {
-            Ok(out) => match CtrlWord::new(out, w.link) {
-                Ok(c) => ctrl_word = Some(c),
-                Err(e) => defmt::error!("xy2 status word out: {}", e),
-            },
-            Err(()) => {}
+        let word = out
+            .map_err(|e| defmt::error!("xy2 status word out: {}", e))
+            .ok()
+            .map(|out| CtrlWord::new(out, w.link));
+        match word {
+            Some(Ok(c)) => ctrl_word = Some(c),
+            Some(Err(e)) => defmt::error!("xy2 status word out: {}", e),
+            None => {}
         }
     }
     sampler.start();
@@ -98,7 +100,7 @@ pub async fn xy2_in(r: Xy2InRes, word: Option<WordOut>) {
         match sampler.read_exact(&mut half).await {
             Ok(()) => {
                 if let Some(c) = ctrl_word.as_mut() {
-                    c.after_half(&half, sampler.last_start(), sampler_len);
+                    c.after_half(&half, sampler.last_start());
                 }
                 forward(half)
             }
