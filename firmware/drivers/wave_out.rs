@@ -51,14 +51,16 @@
 //! out_len`, which must be 0 (CNT before the compare) or 1 (after it, CNT >= CCR1:
 //! the sample of this period is taken, its word not yet played); the status ring is a
 //! multiple of the output ring so `s mod out_len` is meaningful. The side that kept
-//! its count anchors the other: after an underrun the status reader's count (`read`
-//! plus the unread samples) gives the words played, hence the number of the word the
-//! next write lands on (one lap on); after a status overrun the output's count
-//! (`next_word` minus the queued words) gives the samples taken. Then the timer runs
+//! its count anchors the other. After an underrun the output ring restarts anyway
+//! (the next write lands one lap after the DMA), so the status reader restarts at its
+//! DMA position too and both counts start afresh from the snapshot (only their
+//! difference matters): this works even when the status ring overran as well. After
+//! a status overrun alone the output's count (`next_word` minus the queued words)
+//! gives the samples taken, and the output is not disturbed. Then the timer runs
 //! again. The next [`WaveOut::read_status`] reports [`StatusRead::restart`]: its
 //! samples (and all later ones) start at the first word of the next write. A snapshot
-//! that fails its checks (both sides lost, `k` not 0 or 1, CNT disagreeing) leaves the
-//! samples unaligned ([`WaveError::StatusUnaligned`]) until a later realignment
+//! that fails its checks (`k` not 0 or 1, CNT disagreeing, the output count unknown)
+//! leaves the samples unaligned ([`WaveError::StatusUnaligned`]) until a later realignment
 //! succeeds; no phase is ever guessed.
 //!
 //! The ticks are exact only when the timer clock divides evenly (see
@@ -81,6 +83,8 @@ const STATUS_STREAM: usize = 2;
 /// before is served (a single-word transfer takes a few AHB cycles; 200 cycles are
 /// 0.4 us at 480 MHz).
 const SETTLE_CYCLES: u32 = 200;
+/// Snapshots tried per realignment.
+const REALIGN_TRIES: usize = 3;
 
 /// Errors of [`WaveOut`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -346,7 +350,7 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
                 Ok(())
             }
             Err(_) => {
-                self.realign(Anchor::Status);
+                self.realign(Anchor::Fresh);
                 Err(WaveError::Underrun)
             }
         }
@@ -416,24 +420,34 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
     /// sampler (if any) is aligned afterwards exactly when this returns true. Without
     /// a status sampler only the output ring is reset.
     fn realign(&mut self, anchor: Anchor) -> bool {
+        if self.status.is_none() {
+            // Nothing to align: only the output ring restarts (one lap ahead).
+            self.ring.clear();
+            return false;
+        }
         let regs = self.timer.regs_advanced();
         let ccr = u32::from(regs.ccr(0).read().ccr());
-        cortex_m::interrupt::free(|_| {
-            // Freeze: no request after this, a pending one served before the reads.
-            regs.cr1().modify(|w| w.set_cen(false));
-            cortex_m::asm::delay(SETTLE_CYCLES);
-            let cnt = u32::from(regs.cnt().read().cnt());
-            let ok = self.realign_frozen(anchor, cnt, ccr);
-            if let Some(st) = self.status.as_mut() {
-                st.aligned = ok;
-                if ok {
-                    st.keep_from = self.next_word + 1;
-                    st.restart = true;
-                }
+        // A snapshot can only fail its checks by a request not yet served: a retry
+        // (timer running again in between) takes a fresh one.
+        let ok = (0..REALIGN_TRIES).any(|_| {
+            cortex_m::interrupt::free(|_| {
+                // Freeze: no request after this, a pending one served before the reads.
+                regs.cr1().modify(|w| w.set_cen(false));
+                cortex_m::asm::delay(SETTLE_CYCLES);
+                let cnt = u32::from(regs.cnt().read().cnt());
+                let ok = self.realign_frozen(anchor, cnt, ccr);
+                regs.cr1().modify(|w| w.set_cen(true));
+                ok
+            })
+        });
+        if let Some(st) = self.status.as_mut() {
+            st.aligned = ok;
+            if ok {
+                st.keep_from = self.next_word + 1;
+                st.restart = true;
             }
-            regs.cr1().modify(|w| w.set_cen(true));
-            ok
-        })
+        }
+        ok
     }
 
     /// The counting part of [`Self::realign`], with the timer stopped.
@@ -442,9 +456,6 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         let ndtr = |stream: usize| pac::DMA2.st(stream).ndtr().read().ndt() as usize;
         let o = (out_len - ndtr(OUT_STREAM).min(out_len)) % out_len;
         let Some(st) = self.status.as_mut() else {
-            if matches!(anchor, Anchor::Status) {
-                self.ring.clear();
-            }
             return false;
         };
         let s = (st.ring_len - ndtr(STATUS_STREAM).min(st.ring_len)) % st.ring_len;
@@ -456,19 +467,18 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         let (out_len, st_len) = (out_len as u64, st.ring_len as u64);
         let (o, s, k) = (o as u64, s as u64, k as u64);
         match anchor {
-            Anchor::Status => {
-                // Words played from the samples taken.
+            Anchor::Fresh => {
+                // Both readers restart at their DMA's position; only differences
+                // of the counts matter, so the words played are renumbered from
+                // `next_word` on (keeping `played mod out_len == o`).
                 self.ring.clear();
-                let unread = st.ring.len().ok().filter(|_| st.aligned);
-                let played = unread.map(|u| st.read + u as u64).and_then(|taken| {
-                    let played = taken.checked_sub(k)?;
-                    (k_ok && taken % st_len == s && played % out_len == o).then_some(played)
-                });
-                self.words_known = played.is_some();
-                if let Some(played) = played {
-                    self.next_word = played + out_len;
-                }
-                self.words_known
+                st.ring.clear();
+                let base = self.next_word;
+                let played = base + (o + out_len - base % out_len) % out_len;
+                self.next_word = played + out_len;
+                st.read = played + k;
+                self.words_known = k_ok;
+                k_ok
             }
             Anchor::Output => {
                 // Samples taken from the words played.
@@ -491,12 +501,12 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
     }
 }
 
-/// Which count anchors a realignment (module docs).
+/// How a realignment counts (module docs).
 #[derive(Clone, Copy)]
 enum Anchor {
-    /// The status reader's: after an output underrun.
-    Status,
-    /// The output's: after a status ring overrun.
+    /// After an output underrun: both rings restart at their DMA's position.
+    Fresh,
+    /// After a status ring overrun: the samples are counted from the output's words.
     Output,
 }
 
