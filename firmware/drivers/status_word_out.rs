@@ -8,12 +8,13 @@
 //!
 //! # Two DMA requests from one edge
 //! The sampler already uses TIM1's trigger request (DIER.TDE, DMAMUX1 input 16), and
-//! a DMAMUX request line must not feed two streams at once (RM0433 §17.4.2, DMAMUX
-//! request line multiplexer: one DMAREQ_ID per active channel). TIM1's counter is
+//! a DMAMUX request line must not feed two streams at once (RM0433 §17, DMAMUX
+//! request line multiplexer: the same DMAREQ_ID must not be programmed into two
+//! channels that are active together). TIM1's counter is
 //! clocked by CLK (external clock mode 1), so neither its update nor a compare event
 //! happens once per edge. The **commutation** event does: with the capture/compare
 //! control bits preloaded (CR2.CCPC = 1) and CR2.CCUS = 1, every rising edge of TRGI
-//! is a COM event (RM0433 §39.4.2 TIMx_CR2, CCUS; §39.3.16 "Six-step PWM
+//! is a COM event (RM0433 §39.4, TIMx_CR2 bits CCPC and CCUS; §39.3, "Six-step PWM
 //! generation"), and DIER.COMDE turns it into a DMA request (DMAMUX1 input 17,
 //! TIM1_COM, §17.3.2). TRGI is ETRF after the ETP inversion, i.e. the falling CLK
 //! edge, the same edge the sampler's trigger request fires on. TIM1 drives no output
