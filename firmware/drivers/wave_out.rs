@@ -470,11 +470,14 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
             Anchor::Fresh => {
                 // Both readers restart at their DMA's position; only differences
                 // of the counts matter, so the words played are renumbered from
-                // `next_word` on (keeping `played mod out_len == o`).
+                // `next_word` on, keeping the samples taken (`played + k`) equal to
+                // `s` mod the status ring (and so `played` to `o` mod the output
+                // ring) for a later realignment's checks.
                 self.ring.clear();
                 st.ring.clear();
                 let base = self.next_word;
-                let played = base + (o + out_len - base % out_len) % out_len;
+                let target = (s + st_len - k % st_len) % st_len;
+                let played = base + (target + st_len - base % st_len) % st_len;
                 self.next_word = played + out_len;
                 st.read = played + k;
                 self.words_known = k_ok;
