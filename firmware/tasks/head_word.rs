@@ -2,9 +2,9 @@
 //! samples of the head's STATUS line (PG9, one per output tick, aligned to the written
 //! words by `WaveOut::read_status`) are thinned to one per bit -- the middle of the
 //! bit's CLK-high tick, ticks 0, 2, 4, ... of every frame period counted from the
-//! period's own start, so a period with an odd number of ticks (a frame rate that is
-//! no whole divisor of 2 MHz) keeps every bit's sample: `ceil(ticks / 2)` samples per
-//! period -- and go through `shared::xy2::status_line::StatusWordReceiver`; valid
+//! period's own start, so a period with an odd number of ticks (e.g. 41 ticks at
+//! 4 MHz for 97.56 kHz frames: 20 bits and one idle tick) keeps every bit's sample:
+//! `ceil(ticks / 2)` samples per period -- and go through `shared::xy2::status_line::StatusWordReceiver`; valid
 //! words become the head's alarms in the bridge (`head_status_mut` + `status_seen`)
 //! and in `channels::HEAD_STATUS`, invalid ones a `Line::Status` fault.
 //!
