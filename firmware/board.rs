@@ -147,6 +147,9 @@ pub struct Xy2InRes {
     pub clk: Peri<'static, PE7>,
     /// Trigger DMA stream.
     pub dma: Peri<'static, DMA2_CH0>,
+    /// COM DMA stream on the same CLK edges: the STATUS word towards the controller
+    /// (`drivers::status_word_out`, PA0 BSRR).
+    pub status_dma: Peri<'static, DMA2_CH7>,
 }
 
 /// One XY3-100 data line's receive-only SPI slave: the SPI, its SCK (from the shared
@@ -305,8 +308,8 @@ pub struct Resources {
     pub xy2_in: Xy2InRes,
     /// Controller XY3 in.
     pub xy3_in: Xy3InRes,
-    /// Controller-side pair 6 driver input: GPIO (XY2 STATUS level out) or
-    /// SAI2_SD_B (HANS STATUS out).
+    /// Controller-side pair 6 driver input: GPIO (XY2 STATUS level out, or the
+    /// word by BSRR DMA) or SAI2_SD_B (HANS STATUS out).
     pub ctrl_status: Peri<'static, PA0>,
     /// Head waveform out.
     pub wave: WaveRes,
@@ -370,6 +373,7 @@ pub fn init() -> Board {
                 tim: p.TIM1,
                 clk: p.PE7,
                 dma: p.DMA2_CH0,
+                status_dma: p.DMA2_CH7,
             },
             xy3_in: Xy3InRes {
                 x: SpiLineRes {

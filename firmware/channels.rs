@@ -23,7 +23,7 @@
 //! [H] bridge loops --HANS_STATUS_OUT (frames)--> [H] hans_status_out (SAI2 B)
 //! status_level_in / backchannel RX --HEAD_STATUS--> bridge_wave_out, stats
 //! bridge_wave_out --BACK_TX (bytes), BACK_RATE--> backchannel (UART7)
-//! CTRL_STATUS_OK --> status_level_out
+//! CTRL_STATUS_OK --> status_level_out;  CTRL_STATUS_WORD --> [H] xy2_in (word out)
 //! supervisor --HEALTH--> leds;  everyone --STATS--> stats
 //! stats --SNAPSHOT_WANTED--> [H] bridge_wave_out --BRIDGE_SNAPSHOT--> stats
 //! ```
@@ -59,9 +59,10 @@ const HEALTH_RECEIVERS: usize = 1;
 /// Current [`Health`], published by the supervisor.
 pub static HEALTH: Watch<CriticalSectionRawMutex, Health, HEALTH_RECEIVERS> = Watch::new();
 
-/// Samples per XY2-100 input half-buffer (one per bit: 512 bits = 25 frames at
-/// 2 MHz, a 256 us DMA half).
-pub const XY2_HALF: usize = 512;
+/// Samples per XY2-100 input half-buffer (one per bit: 500 bits = 25 frames at
+/// 2 MHz, a 250 us DMA half). The ring (two halves) is a multiple of 20 bits, which
+/// the STATUS word output's ring alignment needs (`drivers::status_word_out`).
+pub const XY2_HALF: usize = 500;
 /// Bytes per XY3-100 input half-buffer and line (16 to 21 frames, 160 to 213 us at
 /// 100 kHz): half of `shared::xy3::rx::WINDOW`, the most the receiver may be fed
 /// between two polls.
@@ -156,6 +157,14 @@ pub static LINK_RUNNING: AtomicBool = AtomicBool::new(false);
 /// `xy2_status_line_high`, i.e. head alarms merged with the bridge's own).
 pub static CTRL_STATUS_OK: AtomicBool = AtomicBool::new(false);
 
+/// The XY2-100 status word towards the controller (`Bridge::xy2_status_word`, the
+/// 16-bit word in the low bits), from the bridge's last batch; [`NO_STATUS_WORD`]
+/// until the first one.
+pub static CTRL_STATUS_WORD: AtomicU32 = AtomicU32::new(NO_STATUS_WORD);
+
+/// [`CTRL_STATUS_WORD`] before the bridge published a word (not a 16-bit value).
+pub const NO_STATUS_WORD: u32 = u32::MAX;
+
 /// The bridge engine's own view for the statistics line: its counters (cumulative,
 /// saturating) and its link state and alarms, copied by the bridge task.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -208,6 +217,9 @@ pub struct Stats {
     pub status_faults: AtomicU32,
     /// Frames the bridge gave that the head-side encoder refused (not sent).
     pub output_refused: AtomicU32,
+    /// XY2 STATUS word input realigned to the output after an output underrun or a
+    /// status ring overrun.
+    pub status_realigns: AtomicU32,
 }
 
 impl Stats {
@@ -236,6 +248,7 @@ pub static STATS: Stats = Stats {
     status_changes: AtomicU32::new(0),
     status_faults: AtomicU32::new(0),
     output_refused: AtomicU32::new(0),
+    status_realigns: AtomicU32::new(0),
 };
 
 // HANS-100 controller side (`tasks/hans_in.rs`, `tasks/hans_status_out.rs`).

@@ -116,12 +116,24 @@ async fn main(spawner: Spawner) {
     let back_config = backchannel::config(config.controller.xy3.back_rate.baud());
     let back = match roles.controller {
         Controller::Xy2 => {
-            high.spawn(line::xy2_in(r.xy2_in).unwrap());
-            let pin = Output::new(r.ctrl_status, Level::High, Speed::Low);
-            let level = shared::xy2::StatusLevel {
-                polarity: config.controller.xy2.polarity,
+            let c = config.controller.xy2;
+            let word = match c.status {
+                StatusForm::Level => {
+                    let pin = Output::new(r.ctrl_status, Level::High, Speed::Low);
+                    let level = shared::xy2::StatusLevel {
+                        polarity: c.polarity,
+                    };
+                    spawner.spawn(status::status_level_out(pin, level).unwrap());
+                    None
+                }
+                // Played by a DMA stream on the controller's clock (xy2_in); low
+                // until the first frame phase is known.
+                StatusForm::Word => Some(line::WordOut {
+                    pin: Output::new(r.ctrl_status, Level::Low, Speed::VeryHigh),
+                    link: c,
+                }),
             };
-            spawner.spawn(status::status_level_out(pin, level).unwrap());
+            high.spawn(line::xy2_in(r.xy2_in, word).unwrap());
             let b = r.back;
             // The pair-6 driver is always on: it carries the STATUS level. Forgotten
             // on purpose: dropping an `Output` would turn the pin back into an input.

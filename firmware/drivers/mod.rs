@@ -8,6 +8,7 @@ pub mod oversample_clock;
 pub mod serial_tx;
 pub mod spi_slave_rx;
 pub mod status_level;
+pub mod status_word_out;
 pub mod sync_marks;
 pub mod wave_out;
 pub mod xy2_sampler;

@@ -35,8 +35,13 @@ mod tests {
     use shared::hans::tx::Transmitter;
     use shared::model::Alarms;
     use shared::model::FaultKind;
-    use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
-    use shared::xy2::{Health, LinkConfig, Mode, Parity, StatusError, StatusLevel, StatusWord};
+    use shared::xy2::rx::{Event as Xy2Event, PinMap, Receiver as Xy2Receiver};
+    use shared::xy2::status_line::{StatusOut as WordOut, StatusWordConfig, StatusWordReceiver};
+    use shared::xy2::tx::{OutPinMap, Transmitter as Xy2Tx};
+    use shared::xy2::{
+        encode as xy2_encode, Frame as Frame2, Health, LinkConfig, Mode, Parity, StatusError,
+        StatusLevel, StatusWord,
+    };
     use shared::xy3;
     use shared::xy3::back::{Event, Packet, Parser, Sender, SEND_BUF_LEN};
     use shared::xy3::{Frame as Frame3, FrameSize};
@@ -49,6 +54,7 @@ mod tests {
     use xy_bridge::drivers::serial_tx::SerialTx;
     use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
     use xy_bridge::drivers::status_level::{StatusIn, StatusOut};
+    use xy_bridge::drivers::status_word_out::{StatusWordOut, FRAME_BITS};
     use xy_bridge::drivers::sync_marks::{SyncEdgeHandler, SyncMarks};
     use xy_bridge::drivers::wave_out::WaveOut;
     use xy_bridge::drivers::xy2_sampler::Xy2Sampler;
@@ -68,6 +74,7 @@ mod tests {
         DMA2_STREAM4 => dma::InterruptHandler<peripherals::DMA2_CH4>;
         DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
         DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
+        DMA2_STREAM7 => dma::InterruptHandler<peripherals::DMA2_CH7>;
         BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
         EXTI4 => SyncEdgeHandler;
         UART7 => usart::InterruptHandler<peripherals::UART7>;
@@ -141,14 +148,32 @@ mod tests {
             assert_eq!(s >> 1 & 1 == 1, x_bits[i], "X at bit {}", i);
         }
 
-        // Status samples, one per bit (the CLK-high tick), aligned to the first word
-        // written: kept sample i must carry bit i's X level, from the first one on.
+        // Status samples, one per tick, aligned to the first word written: sample 2i
+        // (bit i's CLK-high tick) must carry bit i's X level, from the first one on.
         embassy_time::Timer::after_micros(20).await;
         let mut samples = [0u16; 8 * BITS];
-        let n = out.read_status(&mut samples).unwrap();
-        assert!(n >= BITS, "{} status samples", n);
-        for (i, s) in samples[..BITS].iter().enumerate() {
-            assert_eq!(s >> 1 & 1 == 1, x_bits[i], "status sample {}", i);
+        let read = out.read_status(&mut samples).unwrap();
+        assert!(!read.restart, "realigned without an underrun");
+        assert!(read.samples >= 2 * BITS, "{} status samples", read.samples);
+        for (i, s) in samples[..2 * BITS].iter().step_by(2).enumerate() {
+            assert_eq!(s >> 1 & 1 == 1, x_bits[i], "status sample {}", 2 * i);
+        }
+    }
+
+    /// One sample per bit of per-tick status samples (the CLK-high ticks, even ticks
+    /// counted from `tick`), as `tasks/head_word.rs` takes them for an even number of
+    /// ticks per frame, fed to `rx`.
+    fn per_bit(
+        samples: &[u16],
+        tick: &mut usize,
+        rx: &mut StatusWordReceiver,
+        sink: &mut impl FnMut(Result<StatusWord, StatusError>),
+    ) {
+        for &s in samples {
+            if tick.is_multiple_of(2) {
+                rx.feed(&[s], sink);
+            }
+            *tick += 1;
         }
     }
 
@@ -193,6 +218,7 @@ mod tests {
         let mut got: heapless::Vec<Result<StatusWord, StatusError>, 160> = heapless::Vec::new();
         let mut batch = [0u32; FRAMES * TPF];
         let mut samples = [0u16; 4 * FRAMES * TPF];
+        let mut tick = 0;
         // One batch more than the frames: its idle slots (no clock, STATUS held) let
         // the last frame's last bit be sampled.
         for b in 0..=BATCHES {
@@ -206,14 +232,15 @@ mod tests {
                 }
             }
             out.write_half(&batch).await.unwrap();
-            let n = out.read_status(&mut samples).unwrap();
-            rx.feed(&samples[..n], &mut |r| {
+            let read = out.read_status(&mut samples).unwrap();
+            assert!(!read.restart, "realigned without an underrun");
+            per_bit(&samples[..read.samples], &mut tick, &mut rx, &mut |r| {
                 let _ = got.push(r);
             });
         }
         embassy_time::Timer::after_micros(300).await;
-        let n = out.read_status(&mut samples).unwrap();
-        rx.feed(&samples[..n], &mut |r| {
+        let read = out.read_status(&mut samples).unwrap();
+        per_bit(&samples[..read.samples], &mut tick, &mut rx, &mut |r| {
             let _ = got.push(r);
         });
         assert!(got.len() >= BATCHES * FRAMES, "{} words", got.len());
@@ -224,6 +251,394 @@ mod tests {
                 assert_eq!(*r, Ok(word(k)), "frame {}", k);
             }
         }
+    }
+
+    /// XY2-100 head status word after a forced output underrun: as
+    /// `xy2_status_word_loopback` (jumper PD3 -> PG9), but after two batches (whose
+    /// frames must come back) the writer stops for 2 ms, so the DMA replays stale
+    /// words and the status ring overruns too. `write_half` must report the underrun (that batch is dropped), the next
+    /// `read_status` a restart (and no restart ever before), and from there the
+    /// status frames of every batch written after the underrun must come back in
+    /// order through a fresh `StatusWordReceiver` (the bridge's `StatusWordIn` does
+    /// the same at the period of its next slot); the one with a flipped parity bit
+    /// is refused. The frames before the underrun must have come back too.
+    #[test]
+    async fn xy2_status_realign_after_underrun(board: Board) {
+        const TPF: usize = 40;
+        const FRAMES: usize = 25;
+        const BATCHES: usize = 8;
+        const STALL_BEFORE: usize = 2;
+        const BAD: usize = 5 * FRAMES + 7;
+        let r = board.res;
+        let w = r.wave;
+        let _clk = Output::new(w.pins.p1, Level::Low, Speed::VeryHigh);
+        let _status = Output::new(w.pins.p4, Level::Low, Speed::VeryHigh);
+        let _status_in = Input::new(r.head_status, Pull::None);
+        let ring = dma_ring!(".sram2", u32, 2 * FRAMES * TPF);
+        let mut out =
+            WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
+        let status_ring = dma_ring!(".sram2", u16, 4 * FRAMES * TPF);
+        out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring)
+            .unwrap();
+        out.start();
+
+        let link = LinkConfig {
+            mode: Mode::Standard16,
+            parity: Parity::WholeFrame,
+        };
+        let geometry = StatusWordConfig {
+            pin: 9,
+            samples_per_period: (TPF / 2) as u16,
+            offset: 1,
+            link,
+        };
+        let mut rx = StatusWordReceiver::new(geometry).unwrap();
+        let word = |k: usize| StatusWord::from_alarms(Alarms((k as u32).wrapping_mul(5) & 0xF));
+        let frame = |k: usize| word(k).to_frame(&link) ^ u32::from(k == BAD);
+        let mut before: heapless::Vec<Result<StatusWord, StatusError>, 160> = heapless::Vec::new();
+        let mut after: heapless::Vec<Result<StatusWord, StatusError>, 160> = heapless::Vec::new();
+        let mut restarted = false;
+        let mut underruns = 0;
+        let mut batch = [0u32; FRAMES * TPF];
+        let mut samples = [0u16; 4 * FRAMES * TPF];
+        let mut tick = 0;
+        for b in 0..=BATCHES {
+            for (f, slot) in batch.chunks_exact_mut(TPF).enumerate() {
+                let k = b * FRAMES + f;
+                let bits = (b < BATCHES).then(|| frame(k));
+                for (i, pair) in slot.chunks_exact_mut(2).enumerate() {
+                    pair[0] = level(P1, bits.is_some());
+                    let status = bits.map_or(0, |v| level(P4, v >> (19 - i) & 1 == 1));
+                    pair[1] = level(P1, false) | status;
+                }
+            }
+            if b == STALL_BEFORE {
+                // Let the written batches play and read their words (the status ring
+                // holds 1 ms), then stall long enough for both rings to run over.
+                embassy_time::Timer::after_micros(600).await;
+                let read = out.read_status(&mut samples).unwrap();
+                assert!(!read.restart, "realigned before the underrun");
+                per_bit(&samples[..read.samples], &mut tick, &mut rx, &mut |r| {
+                    let _ = before.push(r);
+                });
+                embassy_time::Timer::after_millis(2).await;
+            }
+            match out.write_half(&batch).await {
+                Ok(()) => {}
+                Err(e) => {
+                    assert_eq!(b, STALL_BEFORE, "unexpected {} at batch {}", e, b);
+                    underruns += 1;
+                }
+            }
+            let read = out.read_status(&mut samples).unwrap();
+            if read.restart {
+                assert!(!restarted && underruns == 1, "restart at batch {}", b);
+                restarted = true;
+                rx = StatusWordReceiver::new(geometry).unwrap();
+                tick = 0;
+            }
+            let sink = if restarted { &mut after } else { &mut before };
+            per_bit(&samples[..read.samples], &mut tick, &mut rx, &mut |r| {
+                let _ = sink.push(r);
+            });
+        }
+        embassy_time::Timer::after_micros(300).await;
+        let read = out.read_status(&mut samples).unwrap();
+        assert!(!read.restart);
+        per_bit(&samples[..read.samples], &mut tick, &mut rx, &mut |r| {
+            let _ = after.push(r);
+        });
+        assert_eq!(underruns, 1, "the stall caused no underrun");
+        assert!(restarted, "no realignment after the underrun");
+        // Batch STALL_BEFORE was dropped; the frames of the batches before it came
+        // back (the last one's last bit is sampled from the replayed ring, which may
+        // end it differently).
+        let played = STALL_BEFORE * FRAMES - 1;
+        assert!(before.len() >= played, "{} words before", before.len());
+        for (k, r) in before[..played].iter().enumerate() {
+            assert_eq!(*r, Ok(word(k)), "frame {} before the underrun", k);
+        }
+        let first = (STALL_BEFORE + 1) * FRAMES;
+        let expected = (BATCHES - STALL_BEFORE - 1) * FRAMES;
+        assert!(
+            after.len() >= expected,
+            "{} words after the underrun",
+            after.len()
+        );
+        for (i, r) in after[..expected].iter().enumerate() {
+            let k = first + i;
+            if k == BAD {
+                assert!(r.is_err(), "frame {} with a flipped bit passed", k);
+            } else {
+                assert_eq!(*r, Ok(word(k)), "frame {} after the underrun", k);
+            }
+        }
+    }
+
+    /// The firmware's XY2 head geometry: pins as `tasks/encode.rs` (CLK PD0, SYNC
+    /// PD1, X PD2, Y PD3), 40 ticks per frame at 4 MHz, 16-bit whole-frame parity.
+    fn xy2_head_tx() -> (Xy2Tx, LinkConfig) {
+        let link = LinkConfig {
+            mode: Mode::Standard16,
+            parity: Parity::WholeFrame,
+        };
+        let pins = OutPinMap {
+            clk: P1 as u8,
+            sync: P2 as u8,
+            x: P3 as u8,
+            y: P4 as u8,
+            z: None,
+        };
+        (Xy2Tx::new(pins, 40, link).unwrap(), link)
+    }
+
+    /// Position of frame `k` on axis `axis` (any 16-bit value will do).
+    fn xy2_position(k: usize, axis: u16) -> u16 {
+        (k as u16)
+            .wrapping_mul(2654)
+            .wrapping_add(axis.wrapping_mul(40503))
+    }
+
+    /// Fills `batch` (whole 40-tick slots) with frames `first..` from [`xy2_head_tx`];
+    /// frame `bad` gets bit 7 of its X word flipped on the wire.
+    fn xy2_batch(tx: &Xy2Tx, link: &LinkConfig, batch: &mut [u32], first: usize, bad: usize) {
+        for (f, slot) in batch.chunks_exact_mut(tx.ticks_per_frame()).enumerate() {
+            let k = first + f;
+            let x = xy2_encode(Frame2::Position16(xy2_position(k, 0)), link).unwrap();
+            let y = xy2_encode(Frame2::Position16(xy2_position(k, 1)), link).unwrap();
+            let x = x ^ (u32::from(k == bad) << 7);
+            tx.write_words(slot, [x, y, 0]).unwrap();
+        }
+    }
+
+    /// XY2-100 frames end to end, driver to driver (the bridge tasks live in the
+    /// firmware binary): `shared::xy2::tx` encodes 100 frame periods at the firmware's
+    /// head geometry ([`xy2_head_tx`]), `WaveOut` plays them (TIM8 -> GPIOD BSRR),
+    /// `Xy2Sampler` takes port G on every CLK falling edge (TIM1 ETR -> DMA2 S0) and
+    /// `shared::xy2::rx::Receiver` with the firmware's controller pin map (SYNC PG0,
+    /// X PG1, Y PG2) must give back every frame in order; the period whose X word has
+    /// a flipped bit must be an X check failure with no frame. Jumpers: PD0 -> PE7,
+    /// PD1 -> PG0, PD2 -> PG1, PD3 -> PG2.
+    #[test]
+    async fn xy2_frames_loopback(board: Board) {
+        const FRAMES: usize = 25;
+        const BATCHES: usize = 4;
+        const BAD: usize = 61;
+        const HALF: usize = 500;
+        let r = board.res;
+        let w = r.wave;
+        let _pins = [
+            Output::new(w.pins.p1, Level::Low, Speed::VeryHigh),
+            Output::new(w.pins.p2, Level::Low, Speed::VeryHigh),
+            Output::new(w.pins.p3, Level::Low, Speed::VeryHigh),
+            Output::new(w.pins.p4, Level::Low, Speed::VeryHigh),
+        ];
+        let (tx, link) = xy2_head_tx();
+        let x = r.xy2_in;
+        let in_ring = dma_ring!(".sram2", u16, 2 * HALF);
+        let mut sampler = Xy2Sampler::new(x.tim, x.clk, x.dma, Irqs, pac::GPIOG, in_ring);
+        let ring = dma_ring!(".sram2", u32, 2 * 1000);
+        let mut out = WaveOut::new(
+            w.tim,
+            w.dma,
+            Irqs,
+            pac::GPIOD,
+            ring,
+            tx.idle_word(),
+            4_000_000,
+        )
+        .unwrap();
+        out.start();
+
+        let pins = PinMap {
+            sync: 0,
+            x: 1,
+            y: 2,
+            z: None,
+        };
+        let mut rx = Xy2Receiver::new(pins, link).unwrap();
+        // The line idled low before the first edge (the sampler has no sample of
+        // that): without it the receiver would drop the first frame as partial.
+        rx.feed(&[0], &mut |_| {});
+        let writer = async {
+            let mut batch = [0u32; FRAMES * 40];
+            for b in 0..BATCHES {
+                xy2_batch(&tx, &link, &mut batch, b * FRAMES, BAD);
+                out.write_half(&batch).await.unwrap();
+            }
+            // Idle afterwards: no more clock edges.
+            batch.fill(tx.idle_word());
+            out.write_half(&batch).await.unwrap();
+        };
+        let mut periods: heapless::Vec<Xy2Event, 128> = heapless::Vec::new();
+        let reader = async {
+            let mut half = [0u16; HALF];
+            // 100 frames of 20 bits = 4 halves of 500 samples.
+            for _ in 0..BATCHES * FRAMES * 20 / HALF {
+                with_timeout(WAIT, sampler.read_exact(&mut half))
+                    .await
+                    .unwrap()
+                    .unwrap();
+                rx.feed(&half, &mut |e| {
+                    let _ = periods.push(e);
+                });
+            }
+        };
+        embassy_futures::join::join(writer, reader).await;
+        assert_eq!(
+            periods.len(),
+            BATCHES * FRAMES,
+            "{} frame periods",
+            periods.len()
+        );
+        for (k, e) in periods.iter().enumerate() {
+            let Xy2Event::Frame(p) = e else {
+                panic!("period {}: {:?}", k, e);
+            };
+            let y = Frame2::Position16(xy2_position(k, 1));
+            assert_eq!(p.y, Ok(y), "Y of frame {}", k);
+            if k == BAD {
+                assert!(p.x.is_err(), "X of frame {} with a flipped bit passed", k);
+            } else {
+                let x = Frame2::Position16(xy2_position(k, 0));
+                assert_eq!(p.x, Ok(x), "X of frame {}", k);
+            }
+        }
+    }
+
+    /// XY2-100 STATUS word towards the controller: `StatusWordOut` on the sampler's
+    /// CLK edges (TIM1 COM request -> DMA2 S7 -> GPIOA BSRR) drives PA0, and the
+    /// sampler's own port-G samples read it back on PG9 at every falling edge, where
+    /// a controller reads STATUS (DMA2 serves S0 before S7 on the same edge, so the
+    /// sample shows the word of the edge before). The head side plays back-to-back
+    /// frames ([`xy2_head_tx`]). After `refresh` found the frame phase, every status
+    /// frame (the 20 samples of the next controller frame's bits, `shared`'s
+    /// `StatusWordReceiver` with 20 samples per period, offset 0) must be word A, and
+    /// after the switch word B: at least 100 of each, in that order, never a failed
+    /// or mixed frame. Jumpers: PD0 -> PE7, PD1 -> PG0, PA0 -> PG9.
+    #[test]
+    async fn xy2_status_word_out_loopback(board: Board) {
+        const FRAMES: usize = 25;
+        const HALF: usize = 500;
+        const HALVES: usize = 16;
+        const SWITCH: usize = 8;
+        let r = board.res;
+        let w = r.wave;
+        let _pins = [
+            Output::new(w.pins.p1, Level::Low, Speed::VeryHigh),
+            Output::new(w.pins.p2, Level::Low, Speed::VeryHigh),
+        ];
+        let _status_in = Input::new(r.head_status, Pull::None);
+        let (tx, link) = xy2_head_tx();
+        let x = r.xy2_in;
+        // Declared first: the stream's channel outlives everything that borrows it.
+        let mut slot = None;
+        let in_ring = dma_ring!(".sram2", u16, 2 * HALF);
+        let mut sampler = Xy2Sampler::prepare(x.tim, x.clk, x.dma, Irqs, pac::GPIOG, in_ring);
+        let status_ring = dma_ring!(".sram2", u32, 2 * HALF);
+        let pin = Output::new(r.ctrl_status, Level::Low, Speed::VeryHigh);
+        let mut word_out = StatusWordOut::new(
+            &mut sampler,
+            x.status_dma,
+            Irqs,
+            &mut slot,
+            pac::GPIOA,
+            pin,
+            status_ring,
+            1 << 16,
+            0,
+        )
+        .unwrap();
+        sampler.start();
+        let ring = dma_ring!(".sram2", u32, 2 * 1000);
+        let mut out = WaveOut::new(
+            w.tim,
+            w.dma,
+            Irqs,
+            pac::GPIOD,
+            ring,
+            tx.idle_word(),
+            4_000_000,
+        )
+        .unwrap();
+        out.start();
+
+        let encoder = WordOut::new(0, StatusLevel::default()).unwrap();
+        let a = StatusWord::ALL_OK;
+        let b = StatusWord::from_alarms(Alarms::INPUT_LOST);
+        let frame_words = |word: StatusWord| {
+            let mut words = [0u32; FRAME_BITS];
+            encoder.word_frame(word, &link, &mut words);
+            words
+        };
+        let (words_a, words_b) = (frame_words(a), frame_words(b));
+        let geometry = StatusWordConfig {
+            pin: 9,
+            samples_per_period: 20,
+            offset: 0,
+            link,
+        };
+        let writer = async {
+            let mut batch = [0u32; FRAMES * 40];
+            for b in 0..=HALVES {
+                xy2_batch(&tx, &link, &mut batch, b * FRAMES, usize::MAX);
+                out.write_half(&batch).await.unwrap();
+            }
+        };
+        let mut got: heapless::Vec<Result<StatusWord, StatusError>, 512> = heapless::Vec::new();
+        let mut phase_found = false;
+        let reader = async {
+            let mut half = [0u16; HALF];
+            let mut rx: Option<StatusWordReceiver> = None;
+            for h in 0..HALVES {
+                with_timeout(WAIT, sampler.read_exact(&mut half))
+                    .await
+                    .unwrap()
+                    .unwrap();
+                let words = if h < SWITCH { &words_a } else { &words_b };
+                word_out.refresh(&half, sampler.last_start(), words);
+                phase_found |= word_out.phase().is_some();
+                let mut sink = |r| {
+                    let _ = got.push(r);
+                };
+                match rx.as_mut() {
+                    Some(rx) => rx.feed(&half, &mut sink),
+                    None => {
+                        // Status frames start on the sample after a frame end
+                        // (SYNC low after 19 high samples).
+                        let sync = |i: usize| half[i] & 1 == 1;
+                        if let Some(end) =
+                            (20..HALF).find(|&i| !sync(i) && !sync(i - 20) && (i - 19..i).all(sync))
+                        {
+                            let mut fresh = StatusWordReceiver::new(geometry).unwrap();
+                            fresh.feed(&half[end + 1..], &mut sink);
+                            rx = Some(fresh);
+                        }
+                    }
+                }
+            }
+        };
+        embassy_futures::join::join(writer, reader).await;
+        assert!(phase_found, "no frame phase found");
+        // Before the first sweep reached the DMA the ring played its idle low.
+        let start = got
+            .iter()
+            .position(|r| r.is_ok())
+            .expect("no valid status word");
+        let words = &got[start..];
+        let switch = words
+            .iter()
+            .position(|r| *r != Ok(a))
+            .unwrap_or(words.len());
+        assert!(switch >= 100, "{} words A", switch);
+        for (i, r) in words[switch..].iter().enumerate() {
+            assert_eq!(*r, Ok(b), "word {} after the switch", i);
+        }
+        assert!(
+            words.len() - switch >= 100,
+            "{} words B",
+            words.len() - switch
+        );
     }
 
     /// XY3-100 out -> XY3-100 in. Jumpers: PD0 (SYNC) -> PA15 and PA4, PD1 (CLK) ->

@@ -199,10 +199,10 @@ pub async fn bridge_wave_out(
             Err(_) => Stats::bump(&STATS.output_underruns),
         }
         if let Some(w) = word_in.as_mut() {
-            let samples = out
-                .read_status(&mut status)
-                .map(|n| status.get(..n).unwrap_or_default());
-            w.apply(samples, &sent, &mut core.bridge, slot_ns);
+            // `period`: the first slot of the next batch, where samples realigned
+            // after an underrun (or a status overrun) start again.
+            let read = out.read_status(&mut status);
+            w.apply(read, &mut status, period, &sent, &mut core.bridge, slot_ns);
         }
     }
 }

@@ -17,8 +17,8 @@ use shared::{xy2, xy3};
 
 use crate::channels::{
     set_laser_gate, BridgeSnapshot, Stats, Xy3Raw, BACK_RATE, BACK_TX, BRIDGE_BEAT,
-    BRIDGE_SNAPSHOT, CTRL_STATUS_OK, HEAD_STATUS, LINK_RUNNING, RAW_INPUT, SNAPSHOT_WANTED, STATS,
-    XY3_HALF, XY3_INPUT, XY3_LINES,
+    BRIDGE_SNAPSHOT, CTRL_STATUS_OK, CTRL_STATUS_WORD, HEAD_STATUS, LINK_RUNNING, RAW_INPUT,
+    SNAPSHOT_WANTED, STATS, XY3_HALF, XY3_INPUT, XY3_LINES,
 };
 use crate::config::{Controller, Head};
 
@@ -238,7 +238,7 @@ impl Core {
 
     /// After a batch of slots (`gate`: every slot allowed the gate) at bridge time
     /// `now_ns`: the laser gate (off at once; on only after [`GATE_ON_HISTORY`]
-    /// batches), the statistics snapshot, the XY2 STATUS level towards the
+    /// batches), the statistics snapshot, the XY2 STATUS level and word towards the
     /// controller, the supervisor's heartbeat, the XY3-100 backchannel and the HANS
     /// STATUS frames towards a HANS-100 controller.
     pub(super) fn end_batch(&mut self, gate: bool, now_ns: u64) {
@@ -256,6 +256,8 @@ impl Core {
         }
         let ok = self.ctrl_level.health(self.bridge.xy2_status_line_high()) == xy2::Health::Ok;
         CTRL_STATUS_OK.store(ok, Ordering::Relaxed);
+        let word = self.bridge.xy2_status_word().to_word();
+        CTRL_STATUS_WORD.store(u32::from(word), Ordering::Relaxed);
         BRIDGE_BEAT.fetch_add(1, Ordering::Relaxed);
         self.backchannel(now_ns);
         if matches!(self.decoder, Decoder::Hans) {

@@ -1,8 +1,17 @@
 //! XY2-100 STATUS word from the head (`head.xy2.status = "word"`): the TIM8 CC1
-//! samples of the head's STATUS line (PG9, one per output bit, aligned by
-//! [`WaveOut::read_status`]) go through `shared::xy2::status_line::StatusWordReceiver`;
-//! valid words become the head's alarms in the bridge (`head_status_mut` +
-//! `status_seen`) and in `channels::HEAD_STATUS`, invalid ones a `Line::Status` fault.
+//! samples of the head's STATUS line (PG9, one per output tick, aligned to the written
+//! words by `WaveOut::read_status`) are thinned to one per bit -- the middle of the
+//! bit's CLK-high tick, ticks 0, 2, 4, ... of every frame period counted from the
+//! period's own start, so a period with an odd number of ticks (e.g. 41 ticks at
+//! 4 MHz for 97.56 kHz frames: 20 bits and one idle tick) keeps every bit's sample:
+//! `ceil(ticks / 2)` samples per period -- and go through `shared::xy2::status_line::StatusWordReceiver`; valid
+//! words become the head's alarms in the bridge (`head_status_mut` + `status_seen`)
+//! and in `channels::HEAD_STATUS`, invalid ones a `Line::Status` fault.
+//!
+//! After an output underrun or a status ring overrun the driver realigns the samples
+//! (`WaveOut` module docs) and says so (`StatusRead::restart`): the next samples
+//! start with the first slot the bridge writes next, so the receiver starts afresh
+//! at that period (counted in `channels::STATS.status_realigns`).
 //!
 //! The head shifts its status out on the clock we send, so a frame period in which
 //! the bridge sent no frame (idle slot: no clock edges) carries no status word. The
@@ -15,7 +24,7 @@ use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
 use shared::xy2::{LinkConfig, StatusWord};
 
 use crate::channels::{Stats, HEAD_STATUS, STATS};
-use crate::drivers::wave_out::WaveError;
+use crate::drivers::wave_out::{StatusRead, WaveError};
 
 /// The head's STATUS receiver output: PG9 (board wiring, pair 6 of the head side).
 pub(super) const STATUS_PIN: u8 = 9;
@@ -49,8 +58,13 @@ impl SentPeriods {
 
 /// The head-side STATUS word input.
 pub(super) struct StatusWordIn {
+    config: StatusWordConfig,
     rx: StatusWordReceiver,
-    /// Samples per output frame period.
+    /// Output ticks per frame period.
+    ticks: u64,
+    /// Tick of the next sample within its period.
+    tick: u64,
+    /// Samples fed per output frame period (`ceil(ticks / 2)`).
     period: u64,
     /// Samples fed so far (sample 0 = the middle of the first written word).
     fed: u64,
@@ -62,14 +76,12 @@ pub(super) struct StatusWordIn {
 
 impl StatusWordIn {
     /// The receiver for an XY2-100 head with `ticks_per_frame` output ticks (two per
-    /// bit) per frame period.
+    /// bit, an idle tick when odd) per frame period.
     pub(super) fn new(config: &Config, ticks_per_frame: usize) -> Result<Self, &'static str> {
-        if !ticks_per_frame.is_multiple_of(2) {
-            return Err("an odd number of ticks per frame splits a bit across frames");
-        }
-        let period = u16::try_from(ticks_per_frame / 2).map_err(|_| "frame period too long")?;
+        let period =
+            u16::try_from(ticks_per_frame.div_ceil(2)).map_err(|_| "frame period too long")?;
         let h = config.head.xy2;
-        let rx = StatusWordReceiver::new(StatusWordConfig {
+        let config = StatusWordConfig {
             pin: STATUS_PIN,
             samples_per_period: period,
             offset: STATUS_OFFSET,
@@ -77,10 +89,13 @@ impl StatusWordIn {
                 mode: h.mode,
                 parity: h.parity,
             },
-        })
-        .map_err(|_| "status word geometry refused")?;
+        };
+        let rx = StatusWordReceiver::new(config).map_err(|_| "status word geometry refused")?;
         Ok(StatusWordIn {
+            config,
             rx,
+            ticks: ticks_per_frame as u64,
+            tick: 0,
             period: u64::from(period),
             fed: 0,
             published: None,
@@ -88,29 +103,74 @@ impl StatusWordIn {
         })
     }
 
-    /// Feeds what `WaveOut::read_status` returned and applies the words of periods
-    /// that carried a frame to `bridge` at `now_ns`.
+    /// The samples restart at output period `p` (after a realignment).
+    fn restart_at(&mut self, p: u64) {
+        if let Ok(rx) = StatusWordReceiver::new(self.config) {
+            self.rx = rx;
+        }
+        self.tick = 0;
+        self.fed = p * self.period;
+    }
+
+    /// Keeps one sample per bit of `samples` (ticks 0, 2, 4, ... of each period,
+    /// module docs), compacted to the front; returns how many.
+    fn thin(&mut self, samples: &mut [u16]) -> usize {
+        let mut kept = 0;
+        for i in 0..samples.len() {
+            if self.tick.is_multiple_of(2) {
+                // kept <= i: compacting in place never overtakes the reader.
+                if let Some(s) = samples.get(i).copied() {
+                    if let Some(d) = samples.get_mut(kept) {
+                        *d = s;
+                        kept += 1;
+                    }
+                }
+            }
+            self.tick += 1;
+            if self.tick == self.ticks {
+                self.tick = 0;
+            }
+        }
+        kept
+    }
+
+    /// Feeds what `WaveOut::read_status` returned (`read`, its samples in
+    /// `samples`) and applies the words of periods that carried a frame to `bridge`
+    /// at `now_ns`. `next_period` is the period of the next slot the bridge writes
+    /// (where a realignment restarts the samples).
     pub(super) fn apply(
         &mut self,
-        samples: Result<&[u16], WaveError>,
+        read: Result<StatusRead, WaveError>,
+        samples: &mut [u16],
+        next_period: u64,
         sent: &SentPeriods,
         bridge: &mut Bridge,
         now_ns: u64,
     ) {
-        let mut rest = match samples {
-            Ok(s) => s,
+        let read = match read {
+            Ok(r) => r,
             Err(e) => {
                 if !self.lost {
                     self.lost = true;
                     Stats::bump(&STATS.input_overruns);
                     defmt::error!(
-                        "head status word: {}; no more words this run (STATUS_LOST follows)",
+                        "head status word: {}; no words until realigned (STATUS_LOST follows)",
                         e
                     );
                 }
                 return;
             }
         };
+        if read.restart {
+            self.restart_at(next_period);
+            Stats::bump(&STATS.status_realigns);
+            if core::mem::take(&mut self.lost) {
+                defmt::info!("head status word: realigned at period {}", next_period);
+            }
+        }
+        let n = read.samples.min(samples.len());
+        let kept = self.thin(samples.get_mut(..n).unwrap_or_default());
+        let mut rest: &[u16] = samples.get(..kept).unwrap_or_default();
         // The frame whose first bit is period sample `offset` of period p ends at
         // sample p * period + offset + 19: feed up to each such sample, so every word
         // is known to belong to one period.

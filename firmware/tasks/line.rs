@@ -10,6 +10,7 @@ use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::peripherals::PG8;
 use embassy_stm32::{pac, Peri};
 
+use super::ctrl_word::{self, CtrlWord};
 use super::Irqs;
 use crate::board::{HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes};
 use crate::channels::{
@@ -18,6 +19,7 @@ use crate::channels::{
 };
 use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::{Instance, RxError, SpiSlaveRx};
+use crate::drivers::status_word_out::StatusWordOut;
 use crate::drivers::sync_marks::SyncMarks;
 use crate::drivers::xy2_sampler::Xy2Sampler;
 use embassy_stm32::dma;
@@ -27,9 +29,14 @@ use embassy_stm32::peripherals::{
     PC10, PC12, PE11, PE12, PE14, PF6, PF7, PF9, PG10, SPI1, SPI2, SPI3, SPI4, SPI5,
 };
 use embassy_stm32::spi::{CsPin, MosiPin, RxDma, SckPin};
+use shared::bridge::Xy2Controller;
 use shared::model::Axis;
 use shared::xy3::rx::Lines;
+use static_cell::StaticCell;
 use xy_bridge::dma_ring;
+
+/// The STATUS word stream's channel, kept for as long as its transfer runs (forever).
+static STATUS_DMA_SLOT: StaticCell<Option<dma::Channel<'static>>> = StaticCell::new();
 
 /// Hands an XY2 half to the bridge without waiting: a full queue means the bridge is
 /// late, and waiting would only turn that into a DMA overrun one half later.
@@ -41,15 +48,62 @@ fn forward(raw: RawInput) {
     }
 }
 
+/// The XY2 STATUS word towards the controller (`controller.xy2.status = "word"`):
+/// the STATUS pin (PA0, an output) and the controller link.
+pub struct WordOut {
+    /// PA0, driving the pair-6 driver input.
+    pub pin: Output<'static>,
+    /// The controller link (parity, polarity).
+    pub link: Xy2Controller,
+}
+
+/// STATUS word ring: as long as the sampler ring (it must be a multiple of it and of
+/// 20 words, `drivers::status_word_out`): 1000 words, 50 status frames, 500 us at
+/// 2 MHz; a refill sweep writes it in a few microseconds.
+const STATUS_WORD_RING: usize = 2 * XY2_HALF;
+
 /// XY2-100 input (controller side): TIM1 samples port G on every CLK falling edge.
+/// With `word`, a second stream on the same edges plays the STATUS word towards the
+/// controller ([`super::ctrl_word`]), refreshed after every half.
 #[embassy_executor::task]
-pub async fn xy2_in(r: Xy2InRes) {
+pub async fn xy2_in(r: Xy2InRes, word: Option<WordOut>) {
     let ring = dma_ring!(".sram2", u16, 2 * XY2_HALF);
-    let mut sampler = Xy2Sampler::new(r.tim, r.clk, r.dma, Irqs, pac::GPIOG, ring);
+    let mut sampler = Xy2Sampler::prepare(r.tim, r.clk, r.dma, Irqs, pac::GPIOG, ring);
+    let mut ctrl_word = None;
+    if let Some(w) = word {
+        let slot = STATUS_DMA_SLOT.init(None);
+        let status_ring = dma_ring!(".sram2", u32, STATUS_WORD_RING);
+        let out = StatusWordOut::new(
+            &mut sampler,
+            r.status_dma,
+            Irqs,
+            slot,
+            pac::GPIOA,
+            w.pin,
+            status_ring,
+            ctrl_word::idle_word(),
+            ctrl_word::SYNC_BIT,
+        );
+        let word = out
+            .map_err(|e| defmt::error!("xy2 status word out: {}", e))
+            .ok()
+            .map(|out| CtrlWord::new(out, w.link));
+        match word {
+            Some(Ok(c)) => ctrl_word = Some(c),
+            Some(Err(e)) => defmt::error!("xy2 status word out: {}", e),
+            None => {}
+        }
+    }
+    sampler.start();
     let mut half = [0u16; XY2_HALF];
     loop {
         match sampler.read_exact(&mut half).await {
-            Ok(()) => forward(half),
+            Ok(()) => {
+                if let Some(c) = ctrl_word.as_mut() {
+                    c.after_half(&half, sampler.last_start());
+                }
+                forward(half)
+            }
             Err(e) => {
                 defmt::warn!("xy2 in: {} (at edge {})", e, sampler.edges());
                 Stats::bump(&STATS.input_overruns);

@@ -8,6 +8,7 @@
 pub mod bridge;
 mod bridge_core;
 pub mod bridge_hans;
+mod ctrl_word;
 mod encode;
 pub mod hans_in;
 pub mod hans_status_out;
@@ -42,6 +43,7 @@ bind_interrupts!(
         DMA2_STREAM4 => dma::InterruptHandler<peripherals::DMA2_CH4>;
         DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
         DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
+        DMA2_STREAM7 => dma::InterruptHandler<peripherals::DMA2_CH7>;
         BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
         EXTI4 => SyncEdgeHandler;
         UART7 => usart::InterruptHandler<peripherals::UART7>;

@@ -102,8 +102,8 @@ pub async fn stats() {
         let s = &STATS;
         defmt::info!(
             "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames ({} refused), {} halves \
-             ({} underruns), back {} packets ({} resyncs, {} errors), status changes {} \
-             ({} bad frames), head alarms {=u32:#x}",
+             ({} underruns, {} status realigns), back {} packets ({} resyncs, {} errors), \
+             status changes {} ({} bad frames), head alarms {=u32:#x}",
             Stats::take(&s.input_halves),
             Stats::take(&s.input_overruns),
             Stats::take(&s.sync_marks),
@@ -111,6 +111,7 @@ pub async fn stats() {
             Stats::take(&s.output_refused),
             Stats::take(&s.output_halves),
             Stats::take(&s.output_underruns),
+            Stats::take(&s.status_realigns),
             Stats::take(&s.back_packets),
             Stats::take(&s.back_resyncs),
             Stats::take(&s.back_errors),
