@@ -249,8 +249,18 @@ fn slaved_pairings_and_32_bit_xy3() {
 fn xy3_u_and_w_reach_an_xy3_head() {
     use shared::xy3::rx::Lines;
     let cases = [
-        (Lines::ALL, ZSource::Input, Timing::FreeRunning, FrameSize::Bits24),
-        (Lines::ALL, ZSource::Input, Timing::Slaved, FrameSize::Bits32),
+        (
+            Lines::ALL,
+            ZSource::Input,
+            Timing::FreeRunning,
+            FrameSize::Bits24,
+        ),
+        (
+            Lines::ALL,
+            ZSource::Input,
+            Timing::Slaved,
+            FrameSize::Bits32,
+        ),
         (
             Lines::new(&[Axis::X, Axis::Y, Axis::W]).unwrap(),
             ZSource::None,

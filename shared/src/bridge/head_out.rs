@@ -427,6 +427,9 @@ mod tests {
         let (ok, words) = run(&h, Some(&f));
         assert!(ok);
         assert!(words.iter().any(|w| w & 1 << 14 != 0), "U (PD14) never set");
-        assert!(words.iter().all(|w| w & 1 << 15 == 0), "W (PD15) not driven");
+        assert!(
+            words.iter().all(|w| w & 1 << 15 == 0),
+            "W (PD15) not driven"
+        );
     }
 }

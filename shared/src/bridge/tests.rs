@@ -181,7 +181,7 @@ fn xy3_lines_what_the_bridge_receives() {
 
 #[test]
 fn xy3_head_lines_follow_the_received_lines() {
-    use Axis::{U, W, X, Y, Z};
+    use Axis::{W, X, Y, Z};
     let mut c = Config::default();
     c.head.protocol = Protocol::Xy3;
     // XY2-100 controller: no U / W source, so X Y Z (Z unless `z.source = "none"`).
@@ -235,7 +235,10 @@ fn u_and_w_forwarded_held_and_parked() {
     assert_eq!(raw(&out, W, 20), Some(0xE_EEEE));
     assert_eq!(raw(&out, X, 20), Some(0x8_0000));
     for i in 0..3 {
-        b.on_line_event(i * FP, ev(xyzuw20([1, 2, 3, 0x4_0000 + i as u32, 0x5_0000])));
+        b.on_line_event(
+            i * FP,
+            ev(xyzuw20([1, 2, 3, 0x4_0000 + i as u32, 0x5_0000])),
+        );
     }
     let out = b.tick(2 * FP + 1);
     assert_eq!(out.state, LinkState::Running);
