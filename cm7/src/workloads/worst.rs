@@ -21,8 +21,8 @@ use shared::hans::Frame;
 use shared::model::ForwardFrame;
 use shared::xy2::tx::{OutPinMap as Xy2Pins, Transmitter as Xy2Tx, FRAME_TICKS};
 use shared::xy2::{LinkConfig, Mode as Xy2Mode};
-use shared::xy3::tx::{OutPinMap as Xy3Pins, Transmitter as Xy3Tx, TxConfig};
 use shared::xy3::rx::Lines;
+use shared::xy3::tx::{OutPinMap as Xy3Pins, Transmitter as Xy3Tx, TxConfig};
 use shared::xy3::FrameSize;
 
 /// Sample rate: 3 samples per bit, the slowest the receiver accepts.
