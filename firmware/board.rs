@@ -285,12 +285,13 @@ pub struct HansStatusOutRes {
     pub dma: Peri<'static, DMA2_CH4>,
 }
 
-/// UART7: XY3 backchannel, TX + DE to the controller-side pair-6 driver, RX from the
-/// head-side pair-6 receiver.
+/// UART7: XY3 backchannel towards the controller, TX + DE to the controller-side
+/// pair-6 driver. Its RX pin is not wired on the board (embassy builds a DE UART
+/// duplex only); the HIL tests loop other TX pins into it.
 pub struct BackRes {
     /// UART7.
     pub uart: Peri<'static, UART7>,
-    /// UART7_RX (AF11) from the head side.
+    /// UART7_RX (AF11): not wired (HIL loop-back input).
     pub rx: Peri<'static, PA8>,
     /// UART7_TX (AF7) to the controller side.
     pub tx: Peri<'static, PE8>,
@@ -300,6 +301,23 @@ pub struct BackRes {
     pub tx_dma: Peri<'static, DMA2_CH5>,
     /// RX DMA stream.
     pub rx_dma: Peri<'static, DMA2_CH6>,
+}
+
+/// USART2: XY3 backchannel from the head, RX from the head-side pair-6 receiver; a
+/// UART of its own so the head side runs at its own rate (the bridge switches it
+/// when it forwards a BACK_RATE command to the head, the controller side when the
+/// bytes queued at the old rate are out).
+pub struct HeadBackRes {
+    /// USART2.
+    pub uart: Peri<'static, USART2>,
+    /// USART2_RX (AF7) from the head-side pair-6 receiver.
+    pub rx: Peri<'static, PD6>,
+    /// USART2_TX (AF7): not wired on the board (HIL loop-back output).
+    pub tx: Peri<'static, PD5>,
+    /// RX DMA stream.
+    pub rx_dma: Peri<'static, DMA1_CH5>,
+    /// TX DMA stream (HIL only).
+    pub tx_dma: Peri<'static, DMA1_CH6>,
 }
 
 /// All protocol resources.
@@ -326,8 +344,10 @@ pub struct Resources {
     pub hans_in: HansInRes,
     /// Controller HANS STATUS out (its pin is `ctrl_status`).
     pub hans_status_out: HansStatusOutRes,
-    /// Backchannel UART.
+    /// Backchannel UART towards the controller.
     pub back: BackRes,
+    /// Backchannel UART from the head.
+    pub head_back: HeadBackRes,
     /// Head-side line-driver enable (high = drivers on).
     pub head_enable: Peri<'static, PF11>,
     /// Head-driver source select (low = GPIO waveform, high = HANS serial).
@@ -462,6 +482,13 @@ pub fn init() -> Board {
                 de: p.PF8,
                 tx_dma: p.DMA2_CH5,
                 rx_dma: p.DMA2_CH6,
+            },
+            head_back: HeadBackRes {
+                uart: p.USART2,
+                rx: p.PD6,
+                tx: p.PD5,
+                rx_dma: p.DMA1_CH5,
+                tx_dma: p.DMA1_CH6,
             },
             head_enable: p.PF11,
             head_mux: p.PF15,

@@ -18,11 +18,13 @@
 //!     (receiver -> Bridge -> transmitter -> waveform ring; LASER_GATE, BRIDGE_BEAT,
 //!      LINK_RUNNING, CTRL_STATUS_OK)
 //! [H] xy2_in / xy3_in --> [H] bridge_hans_out (same inputs; HANS-100 head)
+//! [H] bridge_* --XY3_RESYNC (session)--> [H] xy3_in (lines out of step: restart)
 //! [H] hans_status_in --HANS_STATUS_RAW--> hans_status --HEAD_STATUS--> bridge
 //! [H] hans_in --HANS_INPUT--> hans_decode --HANS_EVENTS--> [H] bridge loops
 //! [H] bridge loops --HANS_STATUS_OUT (frames)--> [H] hans_status_out (SAI2 B)
-//! status_level_in / backchannel RX --HEAD_STATUS--> bridge_wave_out, stats
-//! bridge_wave_out --BACK_TX (bytes), BACK_RATE--> backchannel (UART7)
+//! status_level_in / back_from_head --HEAD_STATUS--> bridge_wave_out, stats
+//! bridge_wave_out --BACK_TX (bytes), BACK_RATE--> back_to_controller (UART7)
+//! bridge_wave_out --HEAD_BACK_RATE--> back_from_head (USART2)
 //! CTRL_STATUS_OK --> status_level_out;  CTRL_STATUS_WORD --> [H] xy2_in (word out)
 //! supervisor --HEALTH--> leds;  everyone --STATS--> stats
 //! stats --SNAPSHOT_WANTED--> [H] bridge_wave_out --BRIDGE_SNAPSHOT--> stats
@@ -100,6 +102,11 @@ pub struct Xy3Raw {
 /// arrive per batch; four slots leave room for one late batch).
 pub static XY3_INPUT: Channel<CriticalSectionRawMutex, Xy3Raw, 4> = Channel::new();
 
+/// The bridge's `shared::xy3::step::StepWatch` found the lines of this XY3-100 input
+/// session out of step: the input task restarts every line together (a request for
+/// an older session is ignored, that one has already ended).
+pub static XY3_RESYNC: Signal<CriticalSectionRawMutex, u32> = Signal::new();
+
 /// Raw input halves from the receivers to the bridge. The bridge drains it once per
 /// output batch (about one DMA half), so three slots cover a half arriving while the
 /// bridge waits for output space; a fourth would only hide a slow bridge.
@@ -114,11 +121,15 @@ pub type HansStatusRaw = [u16; HANS_HALF];
 /// `line::HANS_STATUS_EVERY`-th half is sent; a full queue drops the half.
 pub static HANS_STATUS_RAW: Channel<CriticalSectionRawMutex, HansStatusRaw, 1> = Channel::new();
 
-/// Backchannel rate to switch UART7 to (XY3-100 §6): raised by the bridge from
-/// `Output.controller_back_rate` (once the bytes for the old rate have left
-/// [`BACK_TX`]) or `Output.head_back_rate`. UART7 serves both sides (TX to the
-/// controller, RX from the head), so one rate applies to both.
+/// Backchannel rate to switch the controller side (UART7 TX) to (XY3-100 §6):
+/// raised by the bridge from `Output.controller_back_rate` once the bytes made for
+/// the old rate have left [`BACK_TX`].
 pub static BACK_RATE: Signal<CriticalSectionRawMutex, BackRate> = Signal::new();
+
+/// Backchannel rate to switch the head side (USART2 RX) to: raised by the bridge
+/// from `Output.head_back_rate`, in the batch that forwards the BACK_RATE command to
+/// the head (the head answers at the new rate once it has the command).
+pub static HEAD_BACK_RATE: Signal<CriticalSectionRawMutex, BackRate> = Signal::new();
 
 /// Capacity of [`BACK_TX`]: a few packets (a text packet is up to ~210 bytes).
 pub const BACK_TX_LEN: usize = 1024;

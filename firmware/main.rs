@@ -25,7 +25,7 @@ use xy_bridge::{board, drivers};
 use {defmt_rtt as _, panic_probe as _};
 
 use config::{Controller, Head, Roles};
-use drivers::backchannel::{self, Backchannel};
+use drivers::backchannel;
 use drivers::oversample_clock;
 use shared::bridge::StatusForm;
 use shared::hans::rx::Mode as HansMode;
@@ -114,7 +114,7 @@ async fn main(spawner: Spawner) {
 
     // Controller side.
     let back_config = backchannel::config(config.controller.xy3.back_rate.baud());
-    let back = match roles.controller {
+    match roles.controller {
         Controller::Xy2 => {
             let c = config.controller.xy2;
             let word = match c.status {
@@ -134,14 +134,9 @@ async fn main(spawner: Spawner) {
                 }),
             };
             high.spawn(line::xy2_in(r.xy2_in, word).unwrap());
-            let b = r.back;
             // The pair-6 driver is always on: it carries the STATUS level. Forgotten
             // on purpose: dropping an `Output` would turn the pin back into an input.
-            core::mem::forget(Output::new(b.de, Level::High, Speed::Low));
-            (roles.head == Head::Xy3)
-                .then(|| UartRx::new(b.uart, b.rx, b.rx_dma, tasks::Irqs, back_config).ok())
-                .flatten()
-                .map(|rx| Backchannel::receive_only(rx, tasks::back_ring()))
+            core::mem::forget(Output::new(r.back.de, Level::High, Speed::Low));
         }
         Controller::Xy3 => {
             // The lines the controller drives that the bridge uses
@@ -151,7 +146,7 @@ async fn main(spawner: Spawner) {
             defmt::info!("xy3 in: lines {}", lines);
             high.spawn(line::xy3_in(r.xy3_in, lines).unwrap());
             let b = r.back;
-            Uart::new_with_de(
+            match Uart::new_with_de(
                 b.uart,
                 b.rx,
                 b.tx,
@@ -160,9 +155,11 @@ async fn main(spawner: Spawner) {
                 b.rx_dma,
                 tasks::Irqs,
                 back_config,
-            )
-            .ok()
-            .map(|u| Backchannel::duplex(u, tasks::back_ring(), roles.head == Head::Xy3))
+            ) {
+                Ok(u) => spawner
+                    .spawn(status::back_to_controller(backchannel::controller_tx(u)).unwrap()),
+                Err(_) => defmt::error!("backchannel UART (controller) configuration rejected"),
+            }
         }
         Controller::Hans => {
             let mode = hans_in::mode_of(config.controller.hans.decode);
@@ -180,21 +177,21 @@ async fn main(spawner: Spawner) {
             }
             spawner.spawn(hans_in::hans_decode(mode).unwrap());
             high.spawn(hans_status_out::hans_status_out(r.hans_status_out, r.ctrl_status).unwrap());
-            let b = r.back;
             // The pair-6 driver is always on: it carries the HANS STATUS stream.
-            core::mem::forget(Output::new(b.de, Level::High, Speed::Low));
-            (roles.head == Head::Xy3)
-                .then(|| UartRx::new(b.uart, b.rx, b.rx_dma, tasks::Irqs, back_config).ok())
-                .flatten()
-                .map(|rx| Backchannel::receive_only(rx, tasks::back_ring()))
+            core::mem::forget(Output::new(r.back.de, Level::High, Speed::Low));
         }
-    };
-    match back {
-        Some(back) => spawner.spawn(status::backchannel(back).unwrap()),
-        None if roles.head == Head::Xy3 || roles.controller == Controller::Xy3 => {
-            defmt::error!("backchannel UART configuration rejected");
+    }
+    // The head's backchannel on its own UART, at its own rate (the controller's
+    // power-up rate until the bridge forwards a BACK_RATE command).
+    if roles.head == Head::Xy3 {
+        let b = r.head_back;
+        match UartRx::new(b.uart, b.rx, b.rx_dma, tasks::Irqs, back_config) {
+            Ok(rx) => {
+                let rx = backchannel::head_rx(rx, tasks::back_ring());
+                spawner.spawn(status::back_from_head(rx).unwrap());
+            }
+            Err(_) => defmt::error!("backchannel UART (head) configuration rejected"),
         }
-        None => {}
     }
 
     // Head side.

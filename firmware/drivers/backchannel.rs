@@ -1,5 +1,6 @@
-//! XY3-100 backchannel UART (RS-485, `layouts.md` §6; XY3-100 §6): DMA transmit with a
-//! hardware-timed driver enable, ring-buffered DMA receive, runtime baud change.
+//! XY3-100 backchannel UARTs (RS-485, `layouts.md` §6; XY3-100 §6): DMA transmit
+//! with a hardware-timed driver enable towards the controller, ring-buffered DMA
+//! receive from the head, runtime baud change on each.
 //!
 //! embassy-stm32 0.6 covers all of it, so this file only fixes the configuration and
 //! documents the choices (no register code of our own):
@@ -12,16 +13,19 @@
 //! * `set_baudrate` rewrites USART_BRR (§53.5.7) at run time (XY3-100 §6 lets the
 //!   controller change the backchannel rate by command).
 //!
-//! Board: one UART7 serves both sides (README.md (section "Firmware")): TX + DE drive the
-//! controller-side pair-6 RS-485 driver, RX listens to the head-side pair-6 receiver.
-//! Both directions therefore share one baud rate.
+//! Board (README.md, section "Firmware"): one UART per side, so each side runs at its
+//! own rate. UART7 TX + DE drive the controller-side pair-6 RS-485 driver (the
+//! controller only listens on pair 6, so UART7's receiver is not wired; embassy has
+//! no transmit-only constructor with DE, so it is built duplex and its receiver
+//! dropped). USART2 RX listens to the head-side pair-6 receiver (the head only
+//! talks; its TX pin serves the HIL loop-back test only).
 //!
 //! embassy 0.6 quirk found while reading it: `configure` writes CR1.DEDT from
 //! `de_assertion_time` (not `de_deassertion_time`); we set both to the same value so the
 //! result is what we asked for either way.
 
 use embassy_stm32::mode::Async;
-use embassy_stm32::usart::{Config, ConfigError, RingBufferedUartRx, Uart, UartRx, UartTx};
+use embassy_stm32::usart::{Config, RingBufferedUartRx, Uart, UartRx, UartTx};
 
 /// Driver-enable lead and tail time in 1/16 bit: the transceiver needs its enable a
 /// moment before the start bit, and must not cut off the last stop bit.
@@ -36,47 +40,16 @@ pub fn config(baud: u32) -> Config {
     c
 }
 
-/// Transmit and receive halves of the running backchannel; a side that does not
-/// speak XY3-100 leaves its half out.
-pub struct Backchannel<'d> {
-    /// DMA transmitter (DE handled by hardware): controller side is XY3-100.
-    pub tx: Option<UartTx<'d, Async>>,
-    /// Ring-buffered DMA receiver: head side is XY3-100.
-    pub rx: Option<RingBufferedUartRx<'d>>,
+/// The controller-side transmitter of a UART built with `Uart::new_with_de` (its
+/// receiver is dropped: nothing is wired to it).
+pub fn controller_tx(uart: Uart<'_, Async>) -> UartTx<'_, Async> {
+    let (tx, _rx) = uart.split();
+    tx
 }
 
-impl<'d> Backchannel<'d> {
-    /// Splits a UART built with `Uart::new_with_de`; with `receive`, starts ring
-    /// reception into `ring`, else drops the receiver (the head-side pair 6 then
-    /// carries another protocol's STATUS).
-    pub fn duplex(uart: Uart<'d, Async>, ring: &'d mut [u8], receive: bool) -> Self {
-        let (tx, rx) = uart.split();
-        Self {
-            tx: Some(tx),
-            rx: receive.then(|| start(rx.into_ring_buffered(ring))),
-        }
-    }
-
-    /// Receiver only (controller side is not XY3-100, so the DE pin is not the
-    /// UART's and TX stays unused).
-    pub fn receive_only(rx: UartRx<'d, Async>, ring: &'d mut [u8]) -> Self {
-        Self {
-            tx: None,
-            rx: Some(start(rx.into_ring_buffered(ring))),
-        }
-    }
-
-    /// Changes the baud rate of both directions (they share USART_BRR).
-    pub fn set_baud(&mut self, baud: u32) -> Result<(), ConfigError> {
-        match (&self.rx, &self.tx) {
-            (Some(rx), _) => rx.set_baudrate(baud),
-            (None, Some(tx)) => tx.set_baudrate(baud),
-            (None, None) => Ok(()),
-        }
-    }
-}
-
-fn start(mut rx: RingBufferedUartRx<'_>) -> RingBufferedUartRx<'_> {
+/// The head-side receiver, receiving into `ring` from now on.
+pub fn head_rx<'d>(rx: UartRx<'d, Async>, ring: &'d mut [u8]) -> RingBufferedUartRx<'d> {
+    let mut rx = rx.into_ring_buffered(ring);
     rx.start_uart();
     rx
 }

@@ -25,9 +25,10 @@ mod tests {
     use embassy_stm32::gpio::{
         AfType, AnyPin, Flex, Input, Level, Output, OutputType, Pull, Speed,
     };
+    use embassy_stm32::mode::Async;
     use embassy_stm32::peripherals::PA15;
     use embassy_stm32::peripherals::PG8;
-    use embassy_stm32::usart::Uart;
+    use embassy_stm32::usart::{RingBufferedUartRx, Uart, UartTx};
     use embassy_stm32::{bind_interrupts, dma, pac, peripherals, usart, Peri};
     use embassy_time::{with_timeout, Duration};
     use shared::hans::frame::{write_slot, Frame, RING_BYTES};
@@ -48,7 +49,7 @@ mod tests {
     use xy_bridge::board::HANS_FS_HZ;
     use xy_bridge::board::{self, Board};
     use xy_bridge::dma_ring;
-    use xy_bridge::drivers::backchannel::{self, Backchannel};
+    use xy_bridge::drivers::backchannel;
     use xy_bridge::drivers::hans_lines::HansLines;
     use xy_bridge::drivers::oversample_clock;
     use xy_bridge::drivers::serial_tx::SerialTx;
@@ -67,6 +68,8 @@ mod tests {
         DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
         DMA1_STREAM3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
         DMA1_STREAM4 => dma::InterruptHandler<peripherals::DMA1_CH4>;
+        DMA1_STREAM5 => dma::InterruptHandler<peripherals::DMA1_CH5>;
+        DMA1_STREAM6 => dma::InterruptHandler<peripherals::DMA1_CH6>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
@@ -78,6 +81,7 @@ mod tests {
         BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
         EXTI4 => SyncEdgeHandler;
         UART7 => usart::InterruptHandler<peripherals::UART7>;
+        USART2 => usart::InterruptHandler<peripherals::USART2>;
     });
 
     /// Head-side port-D bits used here: pair 1, 2, 3.
@@ -1313,11 +1317,39 @@ mod tests {
         );
     }
 
-    /// Backchannel: UART7 TX -> RX. Jumper: PE8 -> PA8. Packets sent with `shared`'s
-    /// sender must be parsed back, before and after a baud change.
-    #[test]
-    async fn backchannel_loopback(board: Board) {
-        let b = board.res.back;
+    /// Sends `packet` with `shared`'s sender on `tx` and waits until `rx` parses it
+    /// back (other bytes, e.g. a resync after a rate change, are skipped).
+    async fn packet_crosses(
+        tx: &mut UartTx<'static, Async>,
+        rx: &mut RingBufferedUartRx<'static>,
+        sender: &mut Sender,
+        packet: &Packet,
+    ) {
+        let mut parser = Parser::default();
+        let mut out = [0u8; SEND_BUF_LEN];
+        let n = sender.send(0, packet, &mut out).unwrap();
+        tx.write(&out[..n]).await.unwrap();
+        let mut buf = [0u8; 64];
+        loop {
+            let n = with_timeout(WAIT, rx.read(&mut buf))
+                .await
+                .unwrap()
+                .unwrap();
+            for &byte in &buf[..n] {
+                if let Some(Event::Packet(raw)) = parser.push(byte) {
+                    if Packet::decode(raw.ty, raw.payload).as_ref() == Ok(packet) {
+                        return;
+                    }
+                }
+            }
+        }
+    }
+
+    /// UART7 duplex (TX + DE as the firmware builds it), its TX and ring RX.
+    fn uart7(
+        b: board::BackRes,
+        baud: u32,
+    ) -> (UartTx<'static, Async>, RingBufferedUartRx<'static>) {
         let uart = Uart::new_with_de(
             b.uart,
             b.rx,
@@ -1326,38 +1358,84 @@ mod tests {
             b.tx_dma,
             b.rx_dma,
             Irqs,
-            backchannel::config(115_200),
+            backchannel::config(baud),
         )
         .unwrap();
-        let ring = dma_ring!(".sram3", u8, 256);
-        let mut back = Backchannel::duplex(uart, ring, true);
+        let (tx, rx) = uart.split();
+        (tx, backchannel::head_rx(rx, dma_ring!(".sram3", u8, 256)))
+    }
+
+    /// Backchannel towards the controller: UART7 TX -> RX. Jumper: PE8 -> PA8.
+    /// Packets sent with `shared`'s sender must be parsed back, before and after a
+    /// baud change.
+    #[test]
+    async fn backchannel_loopback(board: Board) {
+        let (mut tx, mut rx) = uart7(board.res.back, 115_200);
         let mut sender = Sender::default();
-        let mut parser = Parser::default();
         for (round, baud) in [115_200u32, 921_600].into_iter().enumerate() {
             if round > 0 {
-                back.set_baud(baud).unwrap();
+                tx.set_baudrate(baud).unwrap();
                 sender.note_rate_change();
             }
             let packet = Packet::FrameErrorCount([1, 2, 3, 4, baud]);
-            let mut out = [0u8; SEND_BUF_LEN];
-            let n = sender.send(0, &packet, &mut out).unwrap();
-            back.tx.as_mut().unwrap().write(&out[..n]).await.unwrap();
-            let rx = back.rx.as_mut().unwrap();
-            let mut buf = [0u8; 64];
-            let mut received = false;
-            while !received {
-                let n = with_timeout(WAIT, rx.read(&mut buf))
-                    .await
-                    .unwrap()
-                    .unwrap();
-                for &byte in &buf[..n] {
-                    if let Some(Event::Packet(raw)) = parser.push(byte) {
-                        if let Ok(p) = Packet::decode(raw.ty, raw.payload) {
-                            if p == packet {
-                                received = true;
-                            }
-                        }
-                    }
+            packet_crosses(&mut tx, &mut rx, &mut sender, &packet).await;
+        }
+    }
+
+    /// The head's backchannel UART (USART2, its own rate) against UART7. Jumpers:
+    /// PD5 (USART2 TX) -> PA8 (UART7 RX) and PE8 (UART7 TX) -> PD6 (USART2 RX, the
+    /// head-side pair-6 input). Packets cross both ways at 115200 baud; then each
+    /// UART is switched through its own handle (`set_baudrate` on one must not be
+    /// needed for the other's rate: separate BRRs) to 921600 and they cross again;
+    /// at last only USART2 goes back to 115200 and a packet from UART7 (still at
+    /// 921600) must not be parsed, the proof that the two rates are independent.
+    #[test]
+    async fn head_backchannel_loopback(board: Board) {
+        let (mut ctrl_tx, mut ctrl_rx) = uart7(board.res.back, 115_200);
+        let h = board.res.head_back;
+        let head = Uart::new(
+            h.uart,
+            h.rx,
+            h.tx,
+            h.tx_dma,
+            h.rx_dma,
+            Irqs,
+            backchannel::config(115_200),
+        )
+        .unwrap();
+        let (mut head_tx, head_rx) = head.split();
+        let mut head_rx = backchannel::head_rx(head_rx, dma_ring!(".sram3", u8, 256));
+        let mut sender = Sender::default();
+        for (round, baud) in [115_200u32, 921_600].into_iter().enumerate() {
+            if round > 0 {
+                head_rx.set_baudrate(baud).unwrap();
+                ctrl_tx.set_baudrate(baud).unwrap();
+                sender.note_rate_change();
+            }
+            let to_head = Packet::FrameErrorCount([round as u32, 0, 0, 0, baud]);
+            packet_crosses(&mut ctrl_tx, &mut head_rx, &mut sender, &to_head).await;
+            let from_head = Packet::FrameErrorCount([0, round as u32, 0, 0, baud]);
+            packet_crosses(&mut head_tx, &mut ctrl_rx, &mut sender, &from_head).await;
+        }
+        // Rates apart: USART2 back at 115200, UART7 still at 921600.
+        head_rx.set_baudrate(115_200).unwrap();
+        let mut out = [0u8; SEND_BUF_LEN];
+        let packet = Packet::FrameErrorCount([7, 7, 7, 7, 7]);
+        let n = sender.send(0, &packet, &mut out).unwrap();
+        ctrl_tx.write(&out[..n]).await.unwrap();
+        ctrl_tx.flush().await.unwrap();
+        let mut parser = Parser::default();
+        let mut buf = [0u8; 64];
+        // Whatever arrives (framing errors are allowed) never parses as the packet;
+        // bounded, in case the receiver reports an error on every read.
+        for _ in 0..64 {
+            let n = match with_timeout(Duration::from_millis(20), head_rx.read(&mut buf)).await {
+                Err(_) => break,
+                Ok(r) => r.unwrap_or(0),
+            };
+            for &byte in &buf[..n] {
+                if let Some(Event::Packet(raw)) = parser.push(byte) {
+                    assert_ne!(Packet::decode(raw.ty, raw.payload).as_ref(), Ok(&packet));
                 }
             }
         }

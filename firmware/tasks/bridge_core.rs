@@ -17,8 +17,8 @@ use shared::{xy2, xy3};
 
 use crate::channels::{
     set_laser_gate, BridgeSnapshot, Stats, Xy3Raw, BACK_RATE, BACK_TX, BRIDGE_BEAT,
-    BRIDGE_SNAPSHOT, CTRL_STATUS_OK, CTRL_STATUS_WORD, HEAD_STATUS, LINK_RUNNING, RAW_INPUT,
-    SNAPSHOT_WANTED, STATS, XY3_HALF, XY3_INPUT, XY3_LINES,
+    BRIDGE_SNAPSHOT, CTRL_STATUS_OK, CTRL_STATUS_WORD, HEAD_BACK_RATE, HEAD_STATUS, LINK_RUNNING,
+    RAW_INPUT, SNAPSHOT_WANTED, STATS, XY3_HALF, XY3_INPUT, XY3_LINES, XY3_RESYNC,
 };
 use crate::config::{Controller, Head};
 
@@ -64,6 +64,9 @@ struct Xy3Decoder {
     session: Option<u32>,
     /// `first_byte` the next half must have to continue the byte stream.
     next_byte: u32,
+    /// Lines out of step inside a session: withholds suspect periods, asks the
+    /// input task for a restart ([`XY3_RESYNC`]).
+    watch: xy3::step::StepWatch,
 }
 
 impl Xy3Decoder {
@@ -76,6 +79,7 @@ impl Xy3Decoder {
             lines,
             session: None,
             next_byte: 0,
+            watch: xy3::step::StepWatch::new(xy3::step::OUT_OF_STEP_NS),
         }
     }
 
@@ -112,8 +116,19 @@ impl Xy3Decoder {
             return;
         }
         self.rx.push_ends(&raw.ends);
+        // The watch's clock: halves are drained once per batch (200-250 us), fine
+        // against its 2 ms limit.
+        let now_ns = embassy_time::Instant::now()
+            .as_micros()
+            .saturating_mul(1000);
         while let Some(period) = self.rx.poll() {
-            period.for_each_event(&mut *emit);
+            if self.watch.period(now_ns, &period, &mut *emit) {
+                defmt::warn!(
+                    "xy3 in: lines out of step; restarting session {}",
+                    raw.session
+                );
+                XY3_RESYNC.signal(raw.session);
+            }
         }
     }
 }
@@ -227,10 +242,13 @@ impl Core {
         let running = o.state == LinkState::Running;
         self.started |= running;
         LINK_RUNNING.store(running, Ordering::Relaxed);
-        // One UART serves both sides (channels::BACK_RATE); the controller's
-        // command and the head's (the same command, forwarded) agree.
-        if let Some(rate) = o.controller_back_rate.or(o.head_back_rate) {
+        // Each side has its UART: the controller's waits for the bytes queued at
+        // the old rate (`backchannel`), the head's follows the forwarded command.
+        if let Some(rate) = o.controller_back_rate {
             self.rate_due = Some(rate);
+        }
+        if let Some(rate) = o.head_back_rate {
+            HEAD_BACK_RATE.signal(rate);
         }
         let frame = if self.started { o.frame } else { None };
         (frame, o.laser.gate)

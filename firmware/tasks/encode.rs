@@ -4,7 +4,7 @@
 
 use shared::bridge::head_out::HeadTx;
 use shared::bridge::{Config, Protocol, ZSource};
-use shared::model::ForwardFrame;
+use shared::model::{Axis, ForwardFrame};
 use shared::xy3::FrameSize;
 use shared::{xy2, xy3};
 
@@ -79,10 +79,21 @@ impl Encoder {
                     FrameSize::Bits24 => xy3::tx::MIN_IDLE_TICKS,
                     FrameSize::Bits32 => XY3_IDLE_32,
                 };
+                // Z on pair 5 (PD10), U / W on pairs 7 / 8 (PD14 / PD15), each only
+                // while it has a value to carry (`Config::xy3_head_lines`); an
+                // undriven pair stays low.
+                let lines = config.xy3_head_lines();
+                let pin = |axis: Axis, bit: u8| lines.has(axis).then_some(bit);
                 let pins = xy3::tx::OutPinMap {
                     clk: 1,
                     sync: 0,
-                    data: [Some(2), Some(3), z.then_some(10), None, None],
+                    data: [
+                        Some(2),
+                        Some(3),
+                        pin(Axis::Z, 10),
+                        pin(Axis::U, 14),
+                        pin(Axis::W, 15),
+                    ],
                 };
                 let tx = xy3::tx::TxConfig {
                     pins,
@@ -90,7 +101,7 @@ impl Encoder {
                     idle_ticks,
                 };
                 xy3::tx::Transmitter::new(&tx)
-                    .map(|tx| Encoder(HeadTx::Xy3 { tx, z }))
+                    .map(|tx| Encoder(HeadTx::Xy3 { tx, lines }))
                     .map_err(|_| "XY3-100 transmitter configuration refused")
             }
             Protocol::Hans => Err("HANS-100 head is not a waveform output"),

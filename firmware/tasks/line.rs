@@ -15,7 +15,7 @@ use super::Irqs;
 use crate::board::{HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes};
 use crate::channels::{
     RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_RAW, RAW_INPUT, STATS, XY2_HALF, XY3_HALF,
-    XY3_INPUT, XY3_LINES, XY3_MARKS,
+    XY3_INPUT, XY3_LINES, XY3_MARKS, XY3_RESYNC,
 };
 use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::{Instance, RxError, SpiSlaveRx};
@@ -124,7 +124,10 @@ pub async fn xy2_in(r: Xy2InRes, word: Option<WordOut>) {
 /// all SPIs must start counting together: each session starts them with the SCK-bus
 /// buffer off (OE# high, the bus pulled low, no edges), then turns the buffer on. An
 /// overrun on any line ends the session (its lines are no longer in step) and a new
-/// one starts the same way; the bridge restarts its receiver on the new session.
+/// one starts the same way; the bridge restarts its receiver on the new session. So
+/// does a request from the bridge ([`XY3_RESYNC`]): a glitch that clocked one SPI
+/// but not the others leaves the lines out of step without any overrun, which only
+/// the decoded periods show (`shared::xy3::step`).
 #[embassy_executor::task]
 pub async fn xy3_in(r: Xy3InRes, lines: Lines) {
     let mut r = r;
@@ -155,6 +158,8 @@ pub async fn xy3_in(r: Xy3InRes, lines: Lines) {
             sync: &mut r.sync,
             exti: &mut r.exti,
         };
+        // A request for an older session is stale: this one starts in step.
+        XY3_RESYNC.reset();
         if let Err(e) = xy3_session(res, lines, rings, session, &mut sck_bus).await {
             defmt::warn!("xy3 in: {}; restarting all lines together", e);
             Stats::bump(&STATS.input_overruns);
@@ -207,7 +212,8 @@ where
     Ok(Some(rx))
 }
 
-/// One reception session of [`xy3_in`]: returns when a line fails (never otherwise).
+/// One reception session of [`xy3_in`]: returns `Ok` when the bridge asks for a
+/// restart ([`XY3_RESYNC`], checked once per half), an error when a line fails.
 async fn xy3_session(
     r: Xy3Lines<'_>,
     lines: Lines,
@@ -256,6 +262,9 @@ async fn xy3_session(
             Stats::bump(&STATS.input_overruns);
         }
         raw.first_byte = raw.first_byte.wrapping_add(XY3_HALF as u32);
+        if XY3_RESYNC.try_take() == Some(session) {
+            return Ok(());
+        }
     }
 }
 

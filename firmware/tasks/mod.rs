@@ -36,6 +36,7 @@ bind_interrupts!(
         DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
         DMA1_STREAM3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
         DMA1_STREAM4 => dma::InterruptHandler<peripherals::DMA1_CH4>;
+        DMA1_STREAM5 => dma::InterruptHandler<peripherals::DMA1_CH5>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
@@ -47,6 +48,7 @@ bind_interrupts!(
         BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
         EXTI4 => SyncEdgeHandler;
         UART7 => usart::InterruptHandler<peripherals::UART7>;
+        USART2 => usart::InterruptHandler<peripherals::USART2>;
     }
 );
 
@@ -131,7 +133,8 @@ pub async fn leds(
 /// at 921600 baud between reads).
 const BACK_RING: usize = 1024;
 
-/// The backchannel's receive ring in SRAM3 (DMA2). Called once, by `main`.
+/// The head backchannel's receive ring in SRAM3 (USART2 RX, DMA1 S5). Called once,
+/// by `main`.
 pub fn back_ring() -> &'static mut [u8; BACK_RING] {
     xy_bridge::dma_ring!(".sram3", u8, BACK_RING)
 }

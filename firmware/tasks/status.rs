@@ -1,11 +1,14 @@
-//! Thread-mode status tasks: the XY3-100 backchannel (both sides), the XY2-100
+//! Thread-mode status tasks: the XY3-100 backchannel (one UART per side), the XY2-100
 //! STATUS level (head side in, controller side out) and the HANS-100 STATUS decoder
 //! (head side). Status is slow (packets every
 //! few milliseconds, a level that changes rarely), so none of this needs the
 //! high-priority executor.
 
+use embassy_futures::select::{select, Either};
 use embassy_stm32::gpio::{Input, Output};
-use embassy_time::{with_timeout, Duration, Ticker};
+use embassy_stm32::mode::Async;
+use embassy_stm32::usart::{RingBufferedUartRx, UartTx};
+use embassy_time::{Duration, Ticker};
 use shared::model::HeadStatus;
 use shared::xy2::{Health, StatusLevel};
 use shared::xy3::back::neutral::apply;
@@ -19,81 +22,82 @@ use shared::model::FaultKind;
 
 use crate::board::HANS_FS_HZ;
 use crate::channels::{
-    Stats, BACK_RATE, BACK_TX, CTRL_STATUS_OK, HANS_STATUS_RAW, HEAD_STATUS, HEALTH, STATS,
+    Stats, BACK_RATE, BACK_TX, CTRL_STATUS_OK, HANS_STATUS_RAW, HEAD_BACK_RATE, HEAD_STATUS,
+    HEALTH, STATS,
 };
-use crate::drivers::backchannel::Backchannel;
 use crate::drivers::status_level::{StatusIn, StatusOut};
 
-/// How long a receive may wait before the rate signal is looked at again.
-const RX_SLICE: Duration = Duration::from_millis(5);
-/// With both directions running, how long a receive may hold back the bytes the
-/// bridge queued for the controller.
-const TX_POLL: Duration = Duration::from_millis(1);
-
-/// XY3-100 backchannel on UART7. With `rx` it parses the head's packets into
-/// [`HEAD_STATUS`]; with `tx` it sends what the bridge queued in [`BACK_TX`]
-/// (`Bridge::xy3_back_poll`: the head's status merged with the bridge's alarms, its
-/// own identification and frame-error counts, with the SYNC packets the bridge's
-/// sender interleaves). [`BACK_RATE`] switches both directions once the bytes being
-/// sent have left the UART.
+/// XY3-100 backchannel towards the controller (UART7 TX + DE): sends what the bridge
+/// queued in [`BACK_TX`] (`Bridge::xy3_back_poll`: the head's status merged with the
+/// bridge's alarms, its own identification and frame-error counts, with the SYNC
+/// packets the bridge's sender interleaves). [`BACK_RATE`] switches the rate; the
+/// bridge raises it only once `BACK_TX` is empty, and the last byte of the write in
+/// progress leaves the UART first.
 #[embassy_executor::task]
-pub async fn backchannel(mut back: Backchannel<'static>) {
-    let mut parser = Parser::default();
-    let mut status = HeadStatus::default();
-    let mut rx_buf = [0u8; 64];
+pub async fn back_to_controller(mut tx: UartTx<'static, Async>) {
     let mut out = [0u8; 256];
-    let has_rx = back.rx.is_some();
     loop {
-        if let Some(rate) = BACK_RATE.try_take() {
-            if let Some(tx) = back.tx.as_mut() {
-                // The last byte of the old rate must be on the wire first.
+        match select(BACK_RATE.wait(), BACK_TX.read(&mut out)).await {
+            Either::First(rate) => {
                 if tx.flush().await.is_err() {
                     Stats::bump(&STATS.back_errors);
                 }
+                match tx.set_baudrate(rate.baud()) {
+                    Ok(()) => defmt::info!("backchannel to controller: {} baud", rate.baud()),
+                    Err(_) => defmt::error!("backchannel: cannot set {} baud", rate.baud()),
+                }
             }
-            match back.set_baud(rate.baud()) {
-                Ok(()) => defmt::info!("backchannel: {} baud", rate.baud()),
-                Err(_) => defmt::error!("backchannel: cannot set {} baud", rate.baud()),
+            Either::Second(n) => {
+                if tx.write(out.get(..n).unwrap_or_default()).await.is_err() {
+                    Stats::bump(&STATS.back_errors);
+                }
             }
         }
-        if let Some(tx) = back.tx.as_mut() {
-            let n = if has_rx {
-                BACK_TX.try_read(&mut out).unwrap_or(0)
-            } else {
-                with_timeout(RX_SLICE, BACK_TX.read(&mut out))
-                    .await
-                    .unwrap_or(0)
-            };
-            if n > 0 && tx.write(out.get(..n).unwrap_or_default()).await.is_err() {
+    }
+}
+
+/// XY3-100 backchannel from the head (USART2 RX, its own rate): the head's packets
+/// parsed into [`HEAD_STATUS`]. [`HEAD_BACK_RATE`] switches the rate when the bridge
+/// forwards a BACK_RATE command to the head; bytes the head sent at the old rate
+/// after that are lost to the parser's resync (counted), none are misread: every
+/// packet is checked.
+#[embassy_executor::task]
+pub async fn back_from_head(mut rx: RingBufferedUartRx<'static>) {
+    let mut parser = Parser::default();
+    let mut status = HeadStatus::default();
+    let mut rx_buf = [0u8; 64];
+    loop {
+        let n = match select(HEAD_BACK_RATE.wait(), rx.read(&mut rx_buf)).await {
+            Either::First(rate) => {
+                match rx.set_baudrate(rate.baud()) {
+                    Ok(()) => defmt::info!("backchannel from head: {} baud", rate.baud()),
+                    Err(_) => defmt::error!("backchannel: cannot set {} baud", rate.baud()),
+                }
+                continue;
+            }
+            Either::Second(Ok(n)) => n,
+            Either::Second(Err(_)) => {
                 Stats::bump(&STATS.back_errors);
+                continue;
             }
-        }
-        if let Some(rx) = back.rx.as_mut() {
-            let slice = if back.tx.is_some() { TX_POLL } else { RX_SLICE };
-            match with_timeout(slice, rx.read(&mut rx_buf)).await {
-                Ok(Ok(n)) => {
-                    let mut changed = false;
-                    for &byte in rx_buf.iter().take(n) {
-                        match parser.push(byte) {
-                            Some(Event::Packet(raw)) => {
-                                Stats::bump(&STATS.back_packets);
-                                if let Ok(packet) = Packet::decode(raw.ty, raw.payload) {
-                                    apply(&packet, &mut status);
-                                    changed = true;
-                                }
-                            }
-                            Some(Event::Resynced { .. }) => Stats::bump(&STATS.back_resyncs),
-                            Some(Event::LostSync { .. }) => Stats::bump(&STATS.back_errors),
-                            None => {}
-                        }
-                    }
-                    if changed {
-                        HEAD_STATUS.sender().send(status.clone());
+        };
+        let mut changed = false;
+        for &byte in rx_buf.iter().take(n) {
+            match parser.push(byte) {
+                Some(Event::Packet(raw)) => {
+                    Stats::bump(&STATS.back_packets);
+                    if let Ok(packet) = Packet::decode(raw.ty, raw.payload) {
+                        apply(&packet, &mut status);
+                        changed = true;
                     }
                 }
-                Ok(Err(_)) => Stats::bump(&STATS.back_errors),
-                Err(_) => {}
+                Some(Event::Resynced { .. }) => Stats::bump(&STATS.back_resyncs),
+                Some(Event::LostSync { .. }) => Stats::bump(&STATS.back_errors),
+                None => {}
             }
+        }
+        if changed {
+            HEAD_STATUS.sender().send(status.clone());
         }
     }
 }

@@ -360,6 +360,37 @@ fn the_other_pairings() {
         };
         check_forwarded(sent, &got, &e);
     }
+    // The head's U and W pairs are driven then: `head.vcd` has them, and the head
+    // decodes them in every frame (`generate` sends them at the centre; the pipeline
+    // tests check moving values).
+    let five = "[controller.xy3]\nlines = [\"x\", \"y\", \"z\", \"u\", \"w\"]\n";
+    bridge(&d, &config("xy3", "xy3", five), "xy3.vcd", &[]);
+    let o = ok_in(
+        &d,
+        &["decode", "--protocol", "xy3", "--input", "out/head.vcd"],
+    );
+    let records = jsonl::parse::<ForwardRecord>(&o.stdout).unwrap();
+    assert!(records.len() >= 280, "{} records", records.len());
+    for (_, r) in &records {
+        for line in ["u", "w"] {
+            match r.channel(line) {
+                Some(Channel::Pos { pos, bits: 20 }) => assert_eq!(*pos, 0x8_0000),
+                other => panic!("{line}: {other:?} in {r:?}"),
+            }
+        }
+    }
+    // Without U / W from the controller the head's pairs 7 / 8 stay undriven.
+    bridge(&d, &config("xy3", "xy3", ""), "xy3.vcd", &[]);
+    let o = ok_in(
+        &d,
+        &["decode", "--protocol", "xy3", "--input", "out/head.vcd"],
+    );
+    for (_, r) in jsonl::parse::<ForwardRecord>(&o.stdout).unwrap() {
+        assert!(
+            r.channel("u").is_none() && r.channel("w").is_none(),
+            "{r:?}"
+        );
+    }
     // The configured lines are the ones read: U renamed to a signal the capture does
     // not have is an error only once U is listed (and the head can carry it).
     let u_gone = ["--map", "u=no_such_signal"];

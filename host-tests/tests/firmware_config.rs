@@ -54,6 +54,8 @@ fn every_field_survives_the_trip() {
         [failsafe]
         after_hold = "stop"
         park_x = 0x12345
+        park_u = 0x23456
+        park_w = 0x34567
     "#;
     let want: Config = toml::from_str(text).unwrap();
     assert_ne!(want, Config::default());
@@ -69,6 +71,14 @@ fn bad_files_name_the_key() {
     let typo = SHIPPED.replace("frame_rate_hz = 100000", "frame_rate = 100000");
     let err = bake(&typo).unwrap_err();
     assert!(err.contains("unknown field `frame_rate`"), "{err}");
+
+    let park = SHIPPED.replace("park_w = 0x80000", "park_w = 0x100000");
+    let err = bake(&park).unwrap_err();
+    assert!(err.starts_with("failsafe.park_w:"), "{err}");
+
+    let typo = SHIPPED.replace("park_u = 0x80000", "park_v = 0x80000");
+    let err = bake(&typo).unwrap_err();
+    assert!(err.contains("unknown field `park_v`"), "{err}");
 
     let range = SHIPPED.replace("frame_rate_hz = 100000", "frame_rate_hz = 500");
     let err = bake(&range).unwrap_err();

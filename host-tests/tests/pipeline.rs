@@ -10,7 +10,7 @@ use host_tests::pipeline::stimulus::{self, GenTiming, Stimulus, Timed};
 use host_tests::pipeline::{Options, Pipeline};
 use host_tests::wave::{Ps, Waveform};
 use shared::bridge::{Config, HansDecode, LinkState, Protocol, Timing, ZSource};
-use shared::model::{Alarms, ForwardFrame};
+use shared::model::{Alarms, Axis, ForwardFrame};
 use shared::xy3::FrameSize;
 
 const PROTOCOLS: [Protocol; 3] = [Protocol::Xy2, Protocol::Xy3, Protocol::Hans];
@@ -36,8 +36,11 @@ fn frames(c: &Config, t: &GenTiming, n: usize) -> Vec<ForwardFrame> {
                 (60_000u32.wrapping_sub(i * 53)) & 0xFFFF,
                 (300 + i * 11) & 0xFFFF,
             ];
-            let v = [0, 1, 2].map(|k| v16[k] << (w[k] - 16));
-            stimulus::frame(c, t, v, None)
+            let [x, y, z] = [0, 1, 2].map(|k| v16[k] << (w[k] - 16));
+            // U / W (used only where the controller drives them): XY3 widths.
+            let uw = |v: u32| (v & 0xFFFF) << (t.xy3_size.position_bits() - 16);
+            let (u, w) = (uw(20_000 + i * 17), uw(45_000u32.wrapping_sub(i * 23)));
+            stimulus::frame_uw(c, t, [x, y, z, u, w], None)
         })
         .collect()
 }
@@ -122,7 +125,7 @@ fn carried(c: &Config, stim: &Stimulus, p: &Pipeline) -> Vec<usize> {
         let got = raw(c, &s.frame);
         // An axis the input frame did not carry (X of a command frame the head
         // cannot take) holds its last value.
-        let fits = |e: &([Option<u32>; 3], Option<shared::model::Command>)| {
+        let fits = |e: &([Option<u32>; 5], Option<shared::model::Command>)| {
             e.1 == got.1 && e.0.iter().zip(&got.0).all(|(e, g)| e.is_none() || e == g)
         };
         let i = (from..exp.len())
@@ -135,7 +138,12 @@ fn carried(c: &Config, stim: &Stimulus, p: &Pipeline) -> Vec<usize> {
 }
 
 fn pairing(ctrl: Protocol, head: Protocol, timing: Timing, xy3_size: FrameSize) {
-    let mut c = config(ctrl, head, timing);
+    pairing_of(config(ctrl, head, timing), xy3_size);
+}
+
+/// [`pairing`] for a configuration `c`; returns the head's view.
+fn pairing_of(mut c: Config, xy3_size: FrameSize) -> HeadView {
+    let (ctrl, head, timing) = (c.controller.protocol, c.head.protocol, c.output.timing);
     if head == Protocol::Xy3 {
         c.head.xy3.frame_size = xy3_size;
     }
@@ -162,7 +170,10 @@ fn pairing(ctrl: Protocol, head: Protocol, timing: Timing, xy3_size: FrameSize) 
         Vec::new(),
         50_000,
     );
-    let label = format!("{ctrl:?} -> {head:?} {timing:?} {xy3_size:?}");
+    let label = format!(
+        "{ctrl:?} -> {head:?} {timing:?} {xy3_size:?} {:?}",
+        c.xy3_head_lines()
+    );
     assert_output_is_sent(&c, &p, &view, &label);
     let idx = carried(&c, &stim, &p);
     let counters = p.bridge_counters();
@@ -209,6 +220,7 @@ fn pairing(ctrl: Protocol, head: Protocol, timing: Timing, xy3_size: FrameSize) 
     assert_eq!(counters.axis_check_failures(), [0; 5], "{label}");
     assert_eq!(p.bridge().state(), LinkState::Running, "{label}");
     assert!(p.gate_on(), "{label}");
+    view
 }
 
 #[test]
@@ -230,8 +242,64 @@ fn slaved_pairings_and_32_bit_xy3() {
     }
 }
 
-/// The head frame values of the configured park position.
-fn park_raw(c: &Config) -> [Option<u32>; 3] {
+/// An XY3-100 controller on all five lines (and on X, Y, W without Z) into an
+/// XY3-100 head: U and W reach the head's pairs 7 / 8 and decode there, frame for
+/// frame (checked by `pairing_of` through `raw` / `expected`, which include U / W).
+#[test]
+fn xy3_u_and_w_reach_an_xy3_head() {
+    use shared::xy3::rx::Lines;
+    let cases = [
+        (
+            Lines::ALL,
+            ZSource::Input,
+            Timing::FreeRunning,
+            FrameSize::Bits24,
+        ),
+        (
+            Lines::ALL,
+            ZSource::Input,
+            Timing::Slaved,
+            FrameSize::Bits32,
+        ),
+        (
+            Lines::new(&[Axis::X, Axis::Y, Axis::W]).unwrap(),
+            ZSource::None,
+            Timing::FreeRunning,
+            FrameSize::Bits24,
+        ),
+    ];
+    for (lines, z, timing, size) in cases {
+        let mut c = config(Protocol::Xy3, Protocol::Xy3, timing);
+        c.controller.xy3.lines = lines;
+        c.z.source = z;
+        c.head.xy3.frame_size = size;
+        let view = pairing_of(c, size);
+        let bits = c.head.width(Axis::U);
+        // The head really decoded U / W on every frame, and they move: not a
+        // constant or an absent line passing for equal.
+        for axis in [Axis::U, Axis::W] {
+            let got: Vec<Option<u32>> = view
+                .frames
+                .iter()
+                .map(|d| d.frame.axis(axis).map(|p| p.to_raw(bits)))
+                .collect();
+            assert!(got.len() > 250, "{lines:?}: {} frames", got.len());
+            if lines.has(axis) {
+                assert!(got.iter().all(Option::is_some), "{lines:?} {axis:?}");
+                let mut distinct = got.clone();
+                distinct.sort();
+                distinct.dedup();
+                assert!(distinct.len() > 250, "{lines:?} {axis:?}");
+            } else {
+                assert!(got.iter().all(Option::is_none), "{lines:?} {axis:?}");
+            }
+        }
+    }
+}
+
+/// The head frame values of the configured park position (U / W where the head
+/// gets them).
+fn park_raw(c: &Config) -> [Option<u32>; 5] {
     let w = host_tests::pipeline::check::head_widths(c);
     let f = &c.failsafe;
     let p = |v: u32, bits: u8| {
@@ -239,10 +307,16 @@ fn park_raw(c: &Config) -> [Option<u32>; 3] {
             .unwrap()
             .to_raw(bits)
     };
+    let lines = c.xy3_head_lines();
+    let uw = |axis: Axis, v: u32| {
+        (c.head.protocol == Protocol::Xy3 && lines.has(axis)).then(|| p(v, w[axis.index()]))
+    };
     [
         Some(p(f.park_x, w[0])),
         Some(p(f.park_y, w[1])),
         Some(p(f.park_z, w[2])),
+        uw(Axis::U, f.park_u),
+        uw(Axis::W, f.park_w),
     ]
 }
 
@@ -312,14 +386,19 @@ fn controller_alarms(c: &Config, p: &Pipeline, from_ns: u64, to_ns: u64) -> Alar
 /// The controller's clock stops for 5 ms and restarts: communication alarm, laser
 /// gate off, hold, then park (or stop), recovery only after N valid frames.
 fn clock_stop(ctrl: Protocol, head: Protocol, after: shared::bridge::AfterHold) {
-    let mut c = config(ctrl, head, Timing::FreeRunning);
+    clock_stop_of(config(ctrl, head, Timing::FreeRunning), after);
+}
+
+/// [`clock_stop`] for a configuration `c`.
+fn clock_stop_of(mut c: Config, after: shared::bridge::AfterHold) {
+    let (ctrl, head) = (c.controller.protocol, c.head.protocol);
     c.failsafe.hold_us = 2_000;
     c.failsafe.after_hold = after;
     let t = GenTiming::default();
     let n = 1200;
     let sent = frames(&c, &t, n);
     let (stop_ps, restart_ps): (Ps, Ps) = (4_000_000_000, 9_000_000_000);
-    let label = format!("{ctrl:?} -> {head:?} {after:?}");
+    let label = format!("{ctrl:?} -> {head:?} {after:?} {:?}", c.xy3_head_lines());
     let (p, stim, view) = run(
         &c,
         &t,
@@ -464,6 +543,14 @@ fn controller_clock_stops_and_restarts() {
     clock_stop(Protocol::Xy2, Protocol::Xy3, AfterHold::Park);
     clock_stop(Protocol::Xy3, Protocol::Xy2, AfterHold::Stop);
     clock_stop(Protocol::Hans, Protocol::Hans, AfterHold::Park);
+    // XY3-100 on five lines: U / W held at their last value, then parked at
+    // `failsafe.park_u` / `park_w` (compared by `park_raw`, which includes them).
+    let mut c = config(Protocol::Xy3, Protocol::Xy3, Timing::FreeRunning);
+    c.controller.xy3.lines = shared::xy3::rx::Lines::ALL;
+    c.failsafe.park_u = 0x1_2345;
+    c.failsafe.park_w = 0xF_EDCB;
+    assert!(park_raw(&c)[3..].iter().all(Option::is_some));
+    clock_stop_of(c, AfterHold::Park);
 }
 
 /// HANS-100 controller with one channel broken (open line: reads high) from

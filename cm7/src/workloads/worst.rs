@@ -21,6 +21,7 @@ use shared::hans::Frame;
 use shared::model::ForwardFrame;
 use shared::xy2::tx::{OutPinMap as Xy2Pins, Transmitter as Xy2Tx, FRAME_TICKS};
 use shared::xy2::{LinkConfig, Mode as Xy2Mode};
+use shared::xy3::rx::Lines;
 use shared::xy3::tx::{OutPinMap as Xy3Pins, Transmitter as Xy3Tx, TxConfig};
 use shared::xy3::FrameSize;
 
@@ -128,7 +129,10 @@ impl Chain {
         Some(Chain {
             rx: HansRx::new(FS_HZ, Mode::Super).ok()?,
             bridge: Bridge::new(&config()).ok()?,
-            xy3: HeadTx::Xy3 { tx: xy3, z: true },
+            xy3: HeadTx::Xy3 {
+                tx: xy3,
+                lines: Lines::XYZ,
+            },
             xy2: HeadTx::Xy2 {
                 tx: xy2,
                 mode: Xy2Mode::Standard16,

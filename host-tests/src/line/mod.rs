@@ -39,6 +39,8 @@ pub mod roles {
     pub const U: &str = "U";
     /// W data line (XY3-100).
     pub const W: &str = "W";
+    /// The data lines in axis order (indexed by `Axis::index`).
+    pub const AXES: [&str; 5] = [X, Y, Z, U, W];
     /// Status line (head -> controller).
     pub const STATUS: &str = "STATUS";
     /// HANS-100 channel names, CH1..CH5.

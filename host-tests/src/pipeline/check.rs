@@ -94,18 +94,10 @@ pub fn decode_head(config: &Config, out: &HeadOutput) -> Result<HeadView, Pipeli
             view.faults += rx.counters().framing;
         }
         Protocol::Xy3 => {
-            let lanes: &[&str] = if with_z {
-                &[roles::X, roles::Y, roles::Z]
-            } else {
-                &[roles::X, roles::Y]
-            };
-            let axes: &[Axis] = if with_z {
-                &[Axis::X, Axis::Y, Axis::Z]
-            } else {
-                &[Axis::X, Axis::Y]
-            };
-            let cap = sample::xy3_spi(&wave, lanes, PartialByte::Discard).map_err(err)?;
-            let lines = xy3::rx::Lines::new(axes).ok_or_else(|| err("no XY3 lines"))?;
+            // The head listens on every line the bridge drives (U / W included).
+            let lines = config.xy3_head_lines();
+            let lanes: Vec<&str> = lines.axes().map(|a| roles::AXES[a.index()]).collect();
+            let cap = sample::xy3_spi(&wave, &lanes, PartialByte::Discard).map_err(err)?;
             let mut rx = xy3::rx::Receiver::new(lines);
             let tick = match out {
                 HeadOutput::Wave { tick_ps, .. } => *tick_ps,
@@ -191,9 +183,14 @@ pub fn decode_head(config: &Config, out: &HeadOutput) -> Result<HeadView, Pipeli
     Ok(view)
 }
 
-/// Position widths of the head (X, Y, Z).
-pub fn head_widths(config: &Config) -> [u8; 3] {
-    [Axis::X, Axis::Y, Axis::Z].map(|a| config.head.width(a))
+/// Position widths of the head (X, Y, Z, U, W).
+pub fn head_widths(config: &Config) -> [u8; 5] {
+    Axis::ALL.map(|a| config.head.width(a))
+}
+
+/// Whether the head gets `axis` (U / W: an XY3-100 head driving it).
+fn head_gets_uw(config: &Config, axis: Axis) -> bool {
+    config.head.protocol == Protocol::Xy3 && config.xy3_head_lines().has(axis)
 }
 
 /// The raw head value of a position after resizing to `bits` and the axis map's
@@ -211,10 +208,10 @@ fn mapped(p: Position, bits: u8, invert: bool, offset: i32) -> u32 {
     (v + i64::from(offset)).clamp(0, i64::from(max)) as u32
 }
 
-/// What a head should receive for controller frame `f`: X/Y/Z raw values at the
-/// head's widths after the axis map (`None` for an axis the bridge does not drive),
-/// and the command if the head can carry it.
-pub fn expected(config: &Config, f: &ForwardFrame) -> ([Option<u32>; 3], Option<Command>) {
+/// What a head should receive for controller frame `f`: X/Y/Z/U/W raw values at
+/// the head's widths after the axis map (`None` for an axis the bridge does not
+/// drive; U / W pass unmapped), and the command if the head can carry it.
+pub fn expected(config: &Config, f: &ForwardFrame) -> ([Option<u32>; 5], Option<Command>) {
     let a = &config.axes;
     let w = head_widths(config);
     let (sx, sy) = if a.swap_xy {
@@ -243,12 +240,17 @@ pub fn expected(config: &Config, f: &ForwardFrame) -> ([Option<u32>; 3], Option<
         _ => None,
     };
     let x = if cmd.is_some() { None } else { x };
-    ([x, y, z], cmd)
+    let [u, w_pos] = [Axis::U, Axis::W].map(|a| {
+        f.axis(a)
+            .filter(|_| head_gets_uw(config, a))
+            .map(|p| p.to_raw(w[a.index()]))
+    });
+    ([x, y, z, u, w_pos], cmd)
 }
 
-/// The raw values of a decoded head frame (X, Y, Z at the head's widths) and its
-/// command.
-pub fn raw(config: &Config, f: &ForwardFrame) -> ([Option<u32>; 3], Option<Command>) {
+/// The raw values of a decoded head frame (X, Y, Z and the U / W the head gets, at
+/// the head's widths) and its command.
+pub fn raw(config: &Config, f: &ForwardFrame) -> ([Option<u32>; 5], Option<Command>) {
     let w = head_widths(config);
     let v = |a: Axis, bits: u8| f.axis(a).map(|p| p.to_raw(bits));
     let z = match config.z.source {
@@ -260,5 +262,7 @@ pub fn raw(config: &Config, f: &ForwardFrame) -> ([Option<u32>; 3], Option<Comma
     } else {
         v(Axis::X, w[0])
     };
-    ([x, v(Axis::Y, w[1]), z], f.command)
+    let [u, w_pos] =
+        [Axis::U, Axis::W].map(|a| v(a, w[a.index()]).filter(|_| head_gets_uw(config, a)));
+    ([x, v(Axis::Y, w[1]), z, u, w_pos], f.command)
 }

@@ -30,15 +30,16 @@ pub const HEAD_PINS_XY2: OutPinMap = OutPinMap {
     w: None,
 };
 
-/// Head-side XY3-100 port bits (SYNC on pair 1, CLK on pair 2).
+/// Head-side XY3-100 port bits (SYNC on pair 1, CLK on pair 2, U / W on pairs 7 /
+/// 8); the lines driven are `Config::xy3_head_lines`.
 pub const HEAD_PINS_XY3: OutPinMap = OutPinMap {
     clk: 1,
     sync: 0,
     x: 2,
     y: 3,
     z: Some(10),
-    u: None,
-    w: None,
+    u: Some(14),
+    w: Some(15),
 };
 
 /// XY2-100 output ticks: two per bit at the 2 MHz bit clock.
@@ -91,7 +92,8 @@ impl HeadOutput {
         }
     }
 
-    /// The output as waveforms (roles `CLK SYNC X Y Z` or `CH1`..`CH5`).
+    /// The output as waveforms (roles `CLK SYNC X Y Z U W` as driven, or
+    /// `CH1`..`CH5`).
     pub fn to_waveform(&self) -> Result<Waveform, LineError> {
         match self {
             HeadOutput::Wave {
@@ -259,14 +261,15 @@ impl Output {
             }
             Protocol::Xy3 => {
                 let size = config.head.xy3.frame_size;
-                let (tx, out) = tx::xy3(&HEAD_PINS_XY3, z, size)
+                let lines = config.xy3_head_lines();
+                let (tx, out) = tx::xy3(&HEAD_PINS_XY3, lines, size)
                     .map_err(|e| setup(format!("XY3-100 transmitter: {e}")))?;
                 let ticks = tx.ticks_per_frame();
                 let mut one = vec![0u32; ticks];
                 tx.idle(&mut one)
                     .map_err(|e| setup(format!("XY3-100 idle: {e}")))?;
                 let idle = (one.first().copied().unwrap_or(0), 0);
-                (Encoder::Wave(HeadTx::Xy3 { tx, z }), ticks, idle, out)
+                (Encoder::Wave(HeadTx::Xy3 { tx, lines }), ticks, idle, out)
             }
             Protocol::Hans => (
                 Encoder::Hans(Box::new(HansRing::new())),

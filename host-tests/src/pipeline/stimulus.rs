@@ -24,8 +24,8 @@ const GEN_PINS: OutPinMap = OutPinMap {
     x: 1,
     y: 2,
     z: Some(3),
-    u: None,
-    w: None,
+    u: Some(5),
+    w: Some(6),
 };
 
 /// HANS-100 bit time, ps.
@@ -78,7 +78,9 @@ fn err(e: impl std::fmt::Display) -> PipelineError {
 }
 
 /// Encodes `frames` (controller widths) as the configured controller would send
-/// them, with `shared`'s transmitters. Z is driven when `z.source = "input"`.
+/// them, with `shared`'s transmitters. Z is driven when `z.source = "input"`; an
+/// XY3-100 controller drives the lines the bridge receives
+/// (`Config::xy3_input_lines`, so U / W too when listed for an XY3-100 head).
 pub fn controller_signal(
     config: &Config,
     frames: &[ForwardFrame],
@@ -123,7 +125,8 @@ pub fn controller_signal(
         }
         Protocol::Xy3 => {
             let size = timing.xy3_size;
-            let (tx, host) = tx::xy3(&GEN_PINS, with_z, size).map_err(err)?;
+            let lines = config.xy3_input_lines();
+            let (tx, host) = tx::xy3(&GEN_PINS, lines, size).map_err(err)?;
             let ticks = tx.ticks_per_frame();
             let tick_ps = timing.period_ps as f64 / ticks as f64;
             let bits = u64::from(size.bits());
@@ -138,9 +141,15 @@ pub fn controller_signal(
                     Some(cmd) => command_frame(&cmd, size).map_err(err)?,
                     None => pos(Axis::X)?,
                 };
-                let z = if with_z { Some(pos(Axis::Z)?) } else { None };
-                tx.encode(&[Some(x), Some(pos(Axis::Y)?), z, None, None], slot)
-                    .map_err(err)?;
+                let other = |a: Axis| lines.has(a).then(|| pos(a)).transpose();
+                let data = [
+                    Some(x),
+                    Some(pos(Axis::Y)?),
+                    other(Axis::Z)?,
+                    other(Axis::U)?,
+                    other(Axis::W)?,
+                ];
+                tx.encode(&data, slot).map_err(err)?;
                 let start_ps = timing.start_ps + i as Ps * timing.period_ps;
                 sent.push(SentInput {
                     start_ps,
@@ -308,17 +317,17 @@ fn ns_ceil(ps: Ps) -> u64 {
     ps.div_ceil(1000)
 }
 
-/// The controller's lines of `wave` the configured receiver takes: CLK, SYNC, X, Y
-/// and Z when `z.source = "input"` (other signals are left out, as the board's
-/// receiver never sees them).
-fn controller_lines(wave: &Waveform, with_z: bool) -> Waveform {
-    let roles: &[&str] = if with_z {
-        &[roles::CLK, roles::SYNC, roles::X, roles::Y, roles::Z]
-    } else {
-        &[roles::CLK, roles::SYNC, roles::X, roles::Y]
-    };
+/// The controller's lines of `wave` the configured receiver takes: CLK, SYNC and
+/// the data lines of `axes` (other signals are left out, as the board's receiver
+/// never sees them).
+fn controller_lines(wave: &Waveform, axes: &[Axis]) -> Waveform {
+    let data = axes.iter().map(|&a| roles::AXES[a.index()]);
     let mut lines = Waveform::new();
-    for s in roles.iter().filter_map(|r| wave.get(r)) {
+    for s in [roles::CLK, roles::SYNC]
+        .into_iter()
+        .chain(data)
+        .filter_map(|r| wave.get(r))
+    {
         lines.insert(s.clone());
     }
     lines
@@ -341,7 +350,12 @@ pub fn capture(
         Protocol::Xy2 => {
             // The generated line idles with SYNC low before the first frame: one idle
             // sample lets the receiver see the first frame's SYNC rising edge.
-            let lines = controller_lines(wave, with_z);
+            let axes: &[Axis] = if with_z {
+                &[Axis::X, Axis::Y, Axis::Z]
+            } else {
+                &[Axis::X, Axis::Y]
+            };
+            let lines = controller_lines(wave, axes);
             let input = capture::xy2_from_wave(&lines, capture::LeadIdle::Always).map_err(err)?;
             if with_z && input.pins.z.is_none() {
                 return Err(err("XY2-100 capture: no Z line (z.source = \"input\")"));
@@ -354,12 +368,9 @@ pub fn capture(
             }
         }
         Protocol::Xy3 => {
-            let input = capture::xy3_from_wave(&controller_lines(wave, with_z)).map_err(err)?;
-            let want: &[Axis] = if with_z {
-                &[Axis::X, Axis::Y, Axis::Z]
-            } else {
-                &[Axis::X, Axis::Y]
-            };
+            // As the firmware: the listed lines the bridge uses.
+            let want: Vec<Axis> = config.xy3_input_lines().axes().collect();
+            let input = capture::xy3_from_wave(&controller_lines(wave, &want)).map_err(err)?;
             if input.axes() != want {
                 return Err(err(format!(
                     "XY3-100 capture: lines {:?}, the receiver takes {want:?}",
@@ -528,11 +539,32 @@ pub fn level_samples(end_ns: u64, every_ns: u64, high: impl Fn(u64) -> bool) -> 
 }
 
 /// A neutral frame at the controller's widths (`command` replaces X); values are
-/// taken modulo the width.
+/// taken modulo the width. No U / W: see [`frame_uw`].
 pub fn frame(
     config: &Config,
     timing: &GenTiming,
+    xyz: [u32; 3],
+    command: Option<Command>,
+) -> ForwardFrame {
+    build(config, timing, xyz, None, command)
+}
+
+/// As [`frame`], with U and W for an XY3-100 controller whose U / W lines the
+/// bridge receives (`Config::xy3_input_lines`); ignored otherwise.
+pub fn frame_uw(
+    config: &Config,
+    timing: &GenTiming,
+    [x, y, z, u, w]: [u32; 5],
+    command: Option<Command>,
+) -> ForwardFrame {
+    build(config, timing, [x, y, z], Some([u, w]), command)
+}
+
+fn build(
+    config: &Config,
+    timing: &GenTiming,
     [x, y, z]: [u32; 3],
+    uw: Option<[u32; 2]>,
     command: Option<Command>,
 ) -> ForwardFrame {
     let w = controller_widths(config, timing.xy3_size);
@@ -547,6 +579,15 @@ pub fn frame(
     f.axes[1] = pos(y, w[1]);
     if config.z.source == ZSource::Input || config.controller.protocol == Protocol::Hans {
         f.axes[2] = pos(z, w[2]);
+    }
+    if let (Protocol::Xy3, Some(uw)) = (config.controller.protocol, uw) {
+        let lines = config.xy3_input_lines();
+        let bits = timing.xy3_size.position_bits();
+        for (axis, v) in [(Axis::U, uw[0]), (Axis::W, uw[1])] {
+            if lines.has(axis) {
+                f.axes[axis.index()] = pos(v, bits);
+            }
+        }
     }
     f.command = command;
     f

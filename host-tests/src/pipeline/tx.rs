@@ -2,6 +2,8 @@
 //! ([`crate::line::drive::OutPinMap`]): one set-up for the controller generator
 //! ([`super::stimulus`]) and the head output, so both drive their lines the same way.
 
+use shared::model::Axis;
+use shared::xy3::rx::Lines;
 use shared::xy3::FrameSize;
 use shared::{xy2, xy3};
 
@@ -38,14 +40,27 @@ pub(super) fn xy2(
     Ok((xy2::tx::Transmitter::new(tx_pins, ticks, link)?, p))
 }
 
-/// An XY3-100 transmitter of `size` on `pins` (X, Y, and Z only when `z`), with the
-/// firmware's idle ticks, and the pin map of the lines it drives.
+/// An XY3-100 transmitter of `size` on `pins` driving the data lines `lines` (a
+/// line must have a pin in `pins`), with the firmware's idle ticks, and the pin map
+/// of the lines it drives.
 pub(super) fn xy3(
     pins: &OutPinMap,
-    z: bool,
+    lines: Lines,
     size: FrameSize,
 ) -> Result<(xy3::tx::Transmitter, OutPinMap), xy3::tx::TxConfigError> {
-    let p = with_z(pins, z);
+    let keep = |axis: Axis, pin: Option<u8>| pin.filter(|_| lines.has(axis));
+    let p = OutPinMap {
+        z: keep(Axis::Z, pins.z),
+        u: keep(Axis::U, pins.u),
+        w: keep(Axis::W, pins.w),
+        ..*pins
+    };
+    // A listed line without a pin would be silently missing from the waveform.
+    for (axis, pin) in [(Axis::Z, p.z), (Axis::U, p.u), (Axis::W, p.w)] {
+        if lines.has(axis) && pin.is_none() {
+            return Err(xy3::tx::TxConfigError::MissingLine(axis));
+        }
+    }
     let idle_ticks = match size {
         FrameSize::Bits24 => xy3::tx::MIN_IDLE_TICKS,
         FrameSize::Bits32 => XY3_IDLE_32,
@@ -54,7 +69,7 @@ pub(super) fn xy3(
         pins: xy3::tx::OutPinMap {
             clk: p.clk,
             sync: p.sync,
-            data: [Some(p.x), Some(p.y), p.z, None, None],
+            data: [Some(p.x), Some(p.y), p.z, p.u, p.w],
         },
         size,
         idle_ticks,

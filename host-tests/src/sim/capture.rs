@@ -95,13 +95,12 @@ pub enum Lines<'a> {
 
 /// The role and default file name of a data line (`None` for U / W on XY2-100).
 fn line_names(axis: Axis, xy2: bool) -> Option<(&'static str, &'static str)> {
-    let roles = [roles::X, roles::Y, roles::Z, roles::U, roles::W];
     let names: &[&'static str] = if xy2 {
         &names::XY2_DATA
     } else {
         &names::XY3_DATA
     };
-    Some((*roles.get(axis.index())?, *names.get(axis.index())?))
+    Some((*roles::AXES.get(axis.index())?, *names.get(axis.index())?))
 }
 
 /// `clk sync` and the data lines of `lines`: roles, default names and the index

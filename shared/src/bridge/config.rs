@@ -393,6 +393,10 @@ pub struct FailSafe {
     pub park_y: u32,
     /// Park position Z.
     pub park_z: u32,
+    /// Park position U (XY3-100 heads that get U: [`Config::xy3_head_lines`]).
+    pub park_u: u32,
+    /// Park position W (as U).
+    pub park_w: u32,
     /// Consecutive valid frames needed to leave the fail-safe states (1 ..= 1 000 000).
     pub recovery_frames: u32,
     /// No head status for this long -> status lost (0 = not supervised, else
@@ -409,6 +413,8 @@ impl Default for FailSafe {
             park_x: CENTRE20,
             park_y: CENTRE20,
             park_z: CENTRE20,
+            park_u: CENTRE20,
+            park_w: CENTRE20,
             recovery_frames: 100,
             status_timeout_us: 200_000,
         }
@@ -500,6 +506,30 @@ impl Config {
         }
         if !matches!(self.head.protocol, Protocol::Xy3) {
             lines = lines.without(Axis::U).without(Axis::W);
+        }
+        lines
+    }
+
+    /// The data lines an XY3-100 head output drives (meaningful for an XY3-100
+    /// head only): X and Y always, Z unless `z.source = "none"`, and U / W exactly
+    /// when the bridge receives them from an XY3-100 controller
+    /// ([`Config::xy3_input_lines`]). U and W have no other source (no other
+    /// protocol carries them, and there is no fixed U / W like `z.fixed`), so a
+    /// head line is driven only while it has the controller's value to carry, and
+    /// then in every frame: hold repeats the last received U / W like X / Y / Z,
+    /// park sends `failsafe.park_u` / `park_w`.
+    pub const fn xy3_head_lines(&self) -> Lines {
+        let mut lines = Lines::ALL;
+        if matches!(self.z.source, ZSource::None) {
+            lines = lines.without(Axis::Z);
+        }
+        let received = self.xy3_input_lines();
+        let from_xy3 = matches!(self.controller.protocol, Protocol::Xy3);
+        if !(from_xy3 && received.has(Axis::U)) {
+            lines = lines.without(Axis::U);
+        }
+        if !(from_xy3 && received.has(Axis::W)) {
+            lines = lines.without(Axis::W);
         }
         lines
     }

@@ -98,6 +98,16 @@ impl Bridge {
         ] {
             park.axes[axis.index()] = config_position(&config.head, axis, raw);
         }
+        // U / W only where the head drives them: they have a park position only
+        // where they have a source (`Config::xy3_head_lines`).
+        if config.head.protocol == Protocol::Xy3 {
+            let lines = config.xy3_head_lines();
+            for (axis, raw) in [(Axis::U, f.park_u), (Axis::W, f.park_w)] {
+                if lines.has(axis) {
+                    park.axes[axis.index()] = config_position(&config.head, axis, raw);
+                }
+            }
+        }
         Ok(Bridge {
             config: *config,
             sup: Supervisor::new(f),

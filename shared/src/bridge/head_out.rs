@@ -12,6 +12,7 @@
 
 use crate::model::{Axis, ForwardFrame};
 use crate::xy3::neutral::{command_frame, position_frame};
+use crate::xy3::rx::Lines;
 use crate::{xy2, xy3};
 
 /// A waveform head transmitter with what it needs to map neutral frames onto it.
@@ -29,10 +30,11 @@ pub enum HeadTx {
     },
     /// XY3-100 head (frame size from the transmitter).
     Xy3 {
-        /// The transmitter.
+        /// The transmitter; its pin map must drive exactly `lines`.
         tx: xy3::tx::Transmitter,
-        /// The Z line is driven: every slot needs a Z position.
-        z: bool,
+        /// The data lines driven ([`crate::bridge::Config::xy3_head_lines`]): every
+        /// slot needs a position (or, on X, a command) for each of them.
+        lines: Lines,
     },
 }
 
@@ -66,8 +68,8 @@ impl HeadTx {
             (HeadTx::Xy2 { tx, mode, z }, Some(f)) => {
                 xy2_frame(f, *mode, *z).is_some_and(|t| tx.write_frame(slot, &t).is_ok())
             }
-            (HeadTx::Xy3 { tx, z }, Some(f)) => {
-                xy3_frames(f, tx.size(), *z).is_some_and(|t| tx.encode(&t, slot).is_ok())
+            (HeadTx::Xy3 { tx, lines }, Some(f)) => {
+                xy3_frames(f, tx.size(), *lines).is_some_and(|t| tx.encode(&t, slot).is_ok())
             }
             (_, None) => false,
         };
@@ -97,17 +99,35 @@ fn xy2_frame(f: &ForwardFrame, mode: xy2::Mode, z: bool) -> Option<xy2::tx::TxFr
     })
 }
 
-/// The XY3-100 frames of one slot (X, Y, Z), or `None` if `f` lacks one of them or
-/// carries a command XY3-100 cannot send.
-fn xy3_frames(f: &ForwardFrame, size: xy3::FrameSize, z: bool) -> Option<[Option<xy3::Frame>; 5]> {
+/// The XY3-100 frames of one slot, one per driven line, or `None` if `f` lacks one
+/// of them or carries a command XY3-100 cannot send. Axes `f` carries for lines the
+/// head does not drive are left out.
+fn xy3_frames(
+    f: &ForwardFrame,
+    size: xy3::FrameSize,
+    lines: Lines,
+) -> Option<[Option<xy3::Frame>; 5]> {
     let pos = |a: Axis| f.axis(a).map(|p| position_frame(p, size));
     // The command frame takes X's place (XY3-100 sends commands on the X line).
     let x = match f.command {
         Some(c) => command_frame(&c, size).ok(),
         None => pos(Axis::X),
     }?;
-    let zf = if z { Some(pos(Axis::Z)?) } else { None };
-    Some([Some(x), Some(pos(Axis::Y)?), zf, None, None])
+    // A driven line needs its frame: all-zero bits would be a dead line to the head.
+    let other = |a: Axis| -> Option<Option<xy3::Frame>> {
+        if lines.has(a) {
+            pos(a).map(Some)
+        } else {
+            Some(None)
+        }
+    };
+    Some([
+        Some(x),
+        Some(pos(Axis::Y)?),
+        other(Axis::Z)?,
+        other(Axis::U)?,
+        other(Axis::W)?,
+    ])
 }
 
 #[cfg(test)]
@@ -128,6 +148,14 @@ mod tests {
         }
     }
 
+    /// All five axes present.
+    fn xyzuw() -> ForwardFrame {
+        let mut f = xyz();
+        f.axes[Axis::U.index()] = pos(0x0_0F0F);
+        f.axes[Axis::W.index()] = pos(0xF_5A5A);
+        f
+    }
+
     fn xy2(mode: xy2::Mode, z: bool) -> HeadTx {
         let pins = xy2::tx::OutPinMap {
             clk: 4,
@@ -146,18 +174,32 @@ mod tests {
         }
     }
 
+    /// An XY3-100 head on the firmware's pins driving X, Y and Z if `z`.
     fn xy3(size: FrameSize, z: bool) -> HeadTx {
+        let lines = if z { Lines::XYZ } else { Lines::XY };
+        xy3_lines(size, lines)
+    }
+
+    /// An XY3-100 head on the firmware's pins (Z PD10, U PD14, W PD15) driving `lines`.
+    fn xy3_lines(size: FrameSize, lines: Lines) -> HeadTx {
+        let pin = |a: Axis, bit: u8| lines.has(a).then_some(bit);
         let config = xy3::tx::TxConfig {
             pins: xy3::tx::OutPinMap {
                 clk: 1,
                 sync: 0,
-                data: [Some(2), Some(3), z.then_some(10), None, None],
+                data: [
+                    Some(2),
+                    Some(3),
+                    pin(Axis::Z, 10),
+                    pin(Axis::U, 14),
+                    pin(Axis::W, 15),
+                ],
             },
             size,
             idle_ticks: xy3::tx::MIN_IDLE_TICKS,
         };
         match xy3::tx::Transmitter::new(&config) {
-            Ok(tx) => HeadTx::Xy3 { tx, z },
+            Ok(tx) => HeadTx::Xy3 { tx, lines },
             Err(e) => panic!("{e}"),
         }
     }
@@ -349,5 +391,45 @@ mod tests {
         // A slot shorter than a frame period: refused, no panic.
         let mut short = [0xDEAD_BEEF; 5];
         assert!(!h.encode(Some(&xyz()), &mut short));
+    }
+
+    #[test]
+    fn xy3_u_and_w_lines() {
+        use Axis::{U, W, X, Y, Z};
+        let f = xyzuw();
+        for size in [FrameSize::Bits24, FrameSize::Bits32] {
+            let p = |a: Axis| f.axis(a).map(|p| position_frame(p, size));
+            for axes in [&[X, Y, Z, U, W][..], &[X, Y, U], &[X, Y, Z, W], &[X, Y, W]] {
+                let lines = Lines::new(axes).unwrap();
+                let h = xy3_lines(size, lines);
+                // Every driven line carries its position, the others nothing (a
+                // frame's axes beyond the head's lines are left out, not refused).
+                let want = Axis::ALL.map(|a| if lines.has(a) { p(a) } else { None });
+                assert_eq!(run(&h, Some(&f)), (true, xy3_direct(&h, want)), "{axes:?}");
+                // A driven line without a position: idle, never a zero frame.
+                for missing in lines.axes() {
+                    let mut g = f;
+                    g.axes[missing.index()] = None;
+                    assert_eq!(run(&h, Some(&g)), (false, idle(&h)), "{axes:?} {missing:?}");
+                }
+                // A command replaces X; U and W still go out.
+                let g = ForwardFrame {
+                    command: Some(Command::Xy3(0x0042)),
+                    ..f
+                };
+                let mut want_c = want;
+                want_c[0] = command_frame(&Command::Xy3(0x0042), size).ok();
+                assert_eq!(run(&h, Some(&g)), (true, xy3_direct(&h, want_c)));
+            }
+        }
+        // U and W on the wire: their pins toggle with the data, the idle ones never.
+        let h = xy3_lines(FrameSize::Bits24, Lines::new(&[X, Y, U]).unwrap());
+        let (ok, words) = run(&h, Some(&f));
+        assert!(ok);
+        assert!(words.iter().any(|w| w & 1 << 14 != 0), "U (PD14) never set");
+        assert!(
+            words.iter().all(|w| w & 1 << 15 == 0),
+            "W (PD15) not driven"
+        );
     }
 }

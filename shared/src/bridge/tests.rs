@@ -107,6 +107,13 @@ fn every_rule_names_its_key() {
         (|c| c.failsafe.park_y = 0x10_0000,
             ConfigError::OutOfRange { key: "failsafe.park_y", value: 0x10_0000, min: 0, max: 0xF_FFFF },
             "failsafe.park_y"),
+        (|c| c.failsafe.park_u = 0x10_0000,
+            ConfigError::OutOfRange { key: "failsafe.park_u", value: 0x10_0000, min: 0, max: 0xF_FFFF },
+            "failsafe.park_u"),
+        // Checked whatever the head: a file is wrong or right on its own.
+        (|c| c.failsafe.park_w = u32::MAX,
+            ConfigError::OutOfRange { key: "failsafe.park_w", value: 0xFFFF_FFFF, min: 0, max: 0xF_FFFF },
+            "failsafe.park_w"),
         (|c| c.failsafe.recovery_frames = 0,
             ConfigError::OutOfRange { key: "failsafe.recovery_frames", value: 0, min: 1, max: 1_000_000 },
             "failsafe.recovery_frames"),
@@ -170,6 +177,111 @@ fn xy3_lines_what_the_bridge_receives() {
     c.controller.xy3.lines = xy3_lines(&[X]);
     c.z.source = ZSource::Input;
     assert_eq!(c.validate(), Ok(()));
+}
+
+#[test]
+fn xy3_head_lines_follow_the_received_lines() {
+    use Axis::{W, X, Y, Z};
+    let mut c = Config::default();
+    c.head.protocol = Protocol::Xy3;
+    // XY2-100 controller: no U / W source, so X Y Z (Z unless `z.source = "none"`).
+    assert_eq!(c.xy3_head_lines(), Lines::XYZ);
+    c.z.source = ZSource::None;
+    assert_eq!(c.xy3_head_lines(), Lines::XY);
+    c.z.source = ZSource::Fixed;
+    assert_eq!(c.xy3_head_lines(), Lines::XYZ);
+    // XY3-100 controller: U / W driven exactly when received.
+    c.controller.protocol = Protocol::Xy3;
+    c.controller.xy3.lines = Lines::ALL;
+    assert_eq!(c.xy3_head_lines(), Lines::ALL);
+    c.controller.xy3.lines = xy3_lines(&[X, Y, W]);
+    assert_eq!(c.xy3_head_lines(), xy3_lines(&[X, Y, Z, W]));
+    c.z.source = ZSource::None;
+    assert_eq!(c.xy3_head_lines(), xy3_lines(&[X, Y, W]));
+    // A HANS-100 controller's lines key is not used.
+    c.controller.protocol = Protocol::Hans;
+    c.controller.xy3.lines = Lines::ALL;
+    assert_eq!(c.xy3_head_lines(), Lines::XY);
+}
+
+/// An XY3 -> XY3 bridge on all five lines, 20-bit positions.
+fn five_lines() -> Config {
+    let mut c = Config::default();
+    c.controller.protocol = Protocol::Xy3;
+    c.controller.xy3.lines = Lines::ALL;
+    c.head.protocol = Protocol::Xy3;
+    c.failsafe.park_u = 0x1_1111;
+    c.failsafe.park_w = 0xE_EEEE;
+    c.failsafe.recovery_frames = 3;
+    c
+}
+
+fn xyzuw20(v: [u32; 5]) -> ForwardFrame {
+    ForwardFrame {
+        axes: v.map(|r| Some(pos(r, 20))),
+        ..ForwardFrame::default()
+    }
+}
+
+#[test]
+fn u_and_w_forwarded_held_and_parked() {
+    use Axis::{U, W, X};
+    let c = five_lines();
+    let mut b = Bridge::new(&c).unwrap();
+    // Power-up: the park frame carries U and W at their park positions.
+    let out = b.tick(0);
+    assert_eq!(out.state, LinkState::Safe);
+    assert_eq!(raw(&out, U, 20), Some(0x1_1111));
+    assert_eq!(raw(&out, W, 20), Some(0xE_EEEE));
+    assert_eq!(raw(&out, X, 20), Some(0x8_0000));
+    for i in 0..3 {
+        b.on_line_event(
+            i * FP,
+            ev(xyzuw20([1, 2, 3, 0x4_0000 + i as u32, 0x5_0000])),
+        );
+    }
+    let out = b.tick(2 * FP + 1);
+    assert_eq!(out.state, LinkState::Running);
+    assert_eq!(raw(&out, U, 20), Some(0x4_0002));
+    assert_eq!(raw(&out, W, 20), Some(0x5_0000));
+    // Holding: the last received U / W; safe: park again.
+    let out = b.tick(2 * FP + MS);
+    assert_eq!(out.state, LinkState::Holding);
+    assert_eq!(raw(&out, U, 20), Some(0x4_0002));
+    assert_eq!(raw(&out, W, 20), Some(0x5_0000));
+    let out = b.tick(2 * FP + 11 * MS);
+    assert_eq!(out.state, LinkState::Safe);
+    assert_eq!(raw(&out, U, 20), Some(0x1_1111));
+    assert_eq!(raw(&out, W, 20), Some(0xE_EEEE));
+    // 32-bit head: the park position resized to 26 bits.
+    let mut c32 = five_lines();
+    c32.head.xy3.frame_size = FrameSize::Bits32;
+    let out = Bridge::new(&c32).unwrap().tick(0);
+    assert_eq!(raw(&out, U, 26), Some(0x1_1111 << 6));
+    assert_eq!(raw(&out, W, 26), Some(0xE_EEEE << 6));
+}
+
+#[test]
+fn park_has_no_u_or_w_where_the_head_does_not_drive_them() {
+    use Axis::{U, W};
+    // Only W received: U has no park position (the head does not drive it).
+    let mut c = five_lines();
+    c.controller.xy3.lines = xy3_lines(&[Axis::X, Axis::Y, Axis::Z, W]);
+    let out = Bridge::new(&c).unwrap().tick(0);
+    assert_eq!((raw(&out, U, 20), raw(&out, W, 20)), (None, Some(0xE_EEEE)));
+    // Other heads and controllers: none at all.
+    for (ctrl, head) in [
+        (Protocol::Xy2, Protocol::Xy3),
+        (Protocol::Xy3, Protocol::Xy2),
+        (Protocol::Xy3, Protocol::Hans),
+    ] {
+        let mut c = five_lines();
+        c.controller.protocol = ctrl;
+        c.head.protocol = head;
+        let out = Bridge::new(&c).unwrap().tick(0);
+        assert!(out.frame.is_some(), "{ctrl:?} -> {head:?}");
+        assert_eq!((raw(&out, U, 20), raw(&out, W, 20)), (None, None));
+    }
 }
 
 #[test]

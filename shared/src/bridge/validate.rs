@@ -216,6 +216,8 @@ impl Config {
             ("failsafe.park_x", f.park_x),
             ("failsafe.park_y", f.park_y),
             ("failsafe.park_z", f.park_z),
+            ("failsafe.park_u", f.park_u),
+            ("failsafe.park_w", f.park_w),
         ] {
             range(key, i64::from(v), 0, i64::from(MAX20))?;
         }

@@ -75,6 +75,7 @@ pub mod command;
 pub mod frame;
 pub mod neutral;
 pub mod rx;
+pub mod step;
 pub mod tx;
 #[cfg(any(test, feature = "vectors"))]
 #[doc(hidden)]

@@ -1,0 +1,152 @@
+//! When to restart an XY3-100 input session whose lines have fallen out of step
+//! (sans-IO policy: periods and time in, a yes / no out).
+//!
+//! # The problem
+//! The receiver ([`super::rx`]) needs byte `i` of every line to come from the same
+//! clock edges: the firmware starts every line's SPI slave together and restarts them
+//! all after an overrun. A glitch that clocks one SPI but not the others (a spike on
+//! one SCK input, an edge one slave misses) leaves that line a bit or more ahead or
+//! behind for the rest of the session, without any overrun. The byte and frame-end
+//! counts stay plausible, so the receiver cannot tell this from a bad line: it stays
+//! locked, that line fails its check every period, and no period is forwarded again.
+//! A receiver-side bit offset cannot repair it (the offset is common to all lines by
+//! design, see `rx` "Partial bytes and bit slips"); only restarting the SPIs
+//! together brings the lines back in step.
+//!
+//! Worse, a line one bit out of step does not fail *every* period: the shifted
+//! bits pass the 24-bit checks now and then (up to one time in eight for random
+//! data, the residual risk in `rx`; 36 of 699 periods in the test), and such a
+//! period would carry a wrong position. A rule that waits for "no good
+//! period" would never fire, and the bridge would keep running on those.
+//!
+//! # The rule
+//! [`StepWatch::period`] sees every period the receiver reports and hands its events
+//! on. A bad period (some line failed) opens a *window*; only [`GOOD_RUN`]
+//! consecutive good periods close it again (an in-step link produces them at once, a
+//! shifted line about once in `8^8` periods).
+//! - Once the window holds [`SUSPECT_BAD`] bad periods, the session is *suspect*:
+//!   good periods are withheld (a `Dropped` fault on `Framing` instead of the frame)
+//!   until the window closes. Sporadic noise (bad periods more than `GOOD_RUN`
+//!   apart) never gets there; a burst costs `GOOD_RUN` extra periods after it.
+//! - Once the window is `limit_ns` old ([`OUT_OF_STEP_NS`] in the firmware) *and*
+//!   holds at least [`MIN_BAD_PERIODS`] bad periods (bytes are flowing: a controller
+//!   that pauses or stops delivers no periods, and a restart would not help it), it
+//!   answers "restart" and reports a `Resync` on `Framing`. The input is lost by then
+//!   (the bridge's `failsafe.input_timeout_us` is 1 ms by default, and it needs
+//!   `recovery_frames` consecutive frames to run again), so the restart costs nothing
+//!   that still worked; at 2 ms it comes well inside the hold time (10 ms), so a
+//!   head whose input got out of step recovers without parking.
+//!
+//! A cause a restart cannot fix (an unplugged or broken listed line, a noisy line)
+//! would restart the session again and again; each restart not followed by a closed
+//! window doubles the limit, up to `2^`[`MAX_BACKOFF`] times.
+
+use super::rx::Period;
+use crate::model::{FaultKind, Line, LineEvent};
+
+/// Default window age before a restart (2 ms: 200 periods at 100 kHz).
+pub const OUT_OF_STEP_NS: u64 = 2_000_000;
+/// Bad periods needed in the window before a restart: proof that frames arrive.
+pub const MIN_BAD_PERIODS: u32 = 16;
+/// Bad periods in the window that make the session suspect.
+pub const SUSPECT_BAD: u32 = 3;
+/// Consecutive good periods that close the window.
+pub const GOOD_RUN: u8 = 8;
+/// The limit doubles at most this many times while restarts do not help.
+pub const MAX_BACKOFF: u8 = 6;
+
+/// The restart policy of one XY3-100 input (see the module docs).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct StepWatch {
+    limit_ns: u64,
+    /// Time of the window's first bad period (`None`: no window open).
+    bad_since: Option<u64>,
+    /// Bad periods in the window.
+    bad: u32,
+    /// Consecutive good periods.
+    good_run: u8,
+    /// Restarts since the last closed window (the limit's doubling).
+    backoff: u8,
+}
+
+impl StepWatch {
+    /// A watch that asks for a restart once a window is `limit_ns` old.
+    pub const fn new(limit_ns: u64) -> Self {
+        StepWatch {
+            limit_ns,
+            bad_since: None,
+            bad: 0,
+            good_run: 0,
+            backoff: 0,
+        }
+    }
+
+    /// The current limit: `limit_ns`, doubled per restart that did not help.
+    pub const fn limit_ns(&self) -> u64 {
+        self.limit_ns.saturating_mul(1 << self.backoff)
+    }
+
+    /// Whether good periods are withheld now.
+    pub const fn suspect(&self) -> bool {
+        self.bad >= SUSPECT_BAD
+    }
+
+    /// One period the receiver reported at `now_ns` (non-decreasing): its events
+    /// (or, suspect, a `Dropped` fault in place of its frame) go to `emit`. Returns
+    /// whether the input session should be restarted now (a `Resync` fault on
+    /// `Framing` has been emitted for it); the window then starts over.
+    pub fn period(
+        &mut self,
+        now_ns: u64,
+        period: &Period,
+        mut emit: impl FnMut(LineEvent),
+    ) -> bool {
+        let good = period.all_ok();
+        let (pass, restart) = self.outcome(now_ns, good);
+        if pass || !good {
+            period.for_each_event(&mut emit);
+        } else {
+            emit(LineEvent::Fault {
+                line: Line::Framing,
+                kind: FaultKind::Dropped,
+            });
+        }
+        if restart {
+            emit(LineEvent::Fault {
+                line: Line::Framing,
+                kind: FaultKind::Resync,
+            });
+        }
+        restart
+    }
+
+    /// The rule on a period's outcome (`good`: every line decoded). Returns (a good
+    /// period may pass, restart now).
+    pub fn outcome(&mut self, now_ns: u64, good: bool) -> (bool, bool) {
+        if good {
+            self.good_run = self.good_run.saturating_add(1);
+            if self.good_run >= GOOD_RUN {
+                self.bad_since = None;
+                self.bad = 0;
+                self.backoff = 0;
+            }
+            return (!self.suspect(), false);
+        }
+        self.good_run = 0;
+        let since = *self.bad_since.get_or_insert(now_ns);
+        self.bad = self.bad.saturating_add(1);
+        let due = now_ns.saturating_sub(since) >= self.limit_ns() && self.bad >= MIN_BAD_PERIODS;
+        if due {
+            // A new window for the new session, still suspect: its first periods
+            // pass once they make a good run.
+            self.bad_since = None;
+            self.bad = SUSPECT_BAD;
+            self.backoff = (self.backoff + 1).min(MAX_BACKOFF);
+        }
+        (false, due)
+    }
+}
+
+#[cfg(test)]
+mod tests;
