@@ -204,7 +204,8 @@ impl Graph {
     }
 }
 
-async fn line_in(g: &Graph, mut input: Input) {
+/// `input` is boxed so the task's storage, which outlives the run, stays small.
+async fn line_in(g: &Graph, mut input: Box<Input>) {
     loop {
         let it = g.raw_input.receive().await;
         let mut events = Vec::new();
@@ -223,7 +224,8 @@ async fn line_in(g: &Graph, mut input: Input) {
     }
 }
 
-async fn status_in(g: &Graph, mut status_in: HeadStatusIn) {
+/// Boxed, as in [`line_in`].
+async fn status_in(g: &Graph, mut status_in: Box<HeadStatusIn>) {
     loop {
         let it = g.raw_status.receive().await;
         let mut faults = Vec::new();
@@ -341,8 +343,8 @@ pub fn run(
     items: &[Timed],
     end_ns: u64,
 ) -> Result<TaskRun, TaskError> {
-    let input = Input::new(config, &options)?;
-    let status = HeadStatusIn::new(config, &options)?;
+    let input = Box::new(Input::new(config, &options)?);
+    let status = Box::new(HeadStatusIn::new(config, &options)?);
     let g = Rc::new(Graph {
         clock: SimClock::default(),
         core: RefCell::new(Core::new(config, &options)?),
