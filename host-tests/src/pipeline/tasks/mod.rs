@@ -17,7 +17,7 @@
 //! only move buffers, every decision is in [`Core`] and `shared`.
 //!
 //! # Executor and time
-//! Each run has its own embassy-executor ([`exec`]: the raw executor every
+//! Each run has its own embassy-executor (`exec`: the raw executor every
 //! embassy platform executor wraps, polled by the bench) and its own
 //! [`SimClock`], so tests can run in parallel threads. A task runs only when
 //! something wakes it: a channel (embassy-sync's wakers) or the clock (its own
@@ -103,7 +103,7 @@ pub enum TaskError {
         /// The channel (the firmware's name).
         queue: &'static str,
     },
-    /// The tasks kept waking each other for [`MAX_POLLS`] polls without going idle.
+    /// The tasks kept waking each other for 10 000 executor polls without going idle.
     Busy {
         /// Simulated time, ns.
         t_ns: u64,
