@@ -7,7 +7,8 @@ use host_tests::impair;
 use host_tests::line::roles;
 use host_tests::pipeline::check::{decode_head, expected, raw, HeadView};
 use host_tests::pipeline::stimulus::{self, GenTiming, Stimulus, Timed};
-use host_tests::pipeline::{Options, Pipeline};
+use host_tests::pipeline::tasks::{self, TaskError, TaskRun};
+use host_tests::pipeline::{Options, Pipeline, PipelineError};
 use host_tests::wave::{Ps, Waveform};
 use shared::bridge::{Config, HansDecode, LinkState, Protocol, Timing, ZSource};
 use shared::model::{Alarms, Axis, ForwardFrame};
@@ -924,19 +925,22 @@ fn head_status_disappears_and_returns() {
     }
 }
 
-/// The task graph (async tasks over `embassy-sync` channels on a simulated clock)
-/// gives exactly what the synchronous pipeline gives for the same buffers.
-fn same_as_tasks(c: &Config, items: &[Timed], end_ns: u64, label: &str) {
+/// The task graph (embassy-executor tasks over `embassy-sync` channels on a
+/// simulated clock) gives exactly what the synchronous pipeline gives for the same
+/// buffers; the supervisor's timer fires once per period, and never sees a stall.
+fn same_as_tasks(c: &Config, items: &[Timed], end_ns: u64, label: &str) -> TaskRun {
     let mut p = Pipeline::new(c, Options::default()).unwrap();
     stimulus::run(&mut p, items, end_ns).unwrap();
-    let r = host_tests::pipeline::tasks::run(c, Options::default(), items, end_ns).unwrap();
+    let r = tasks::run(c, Options::default(), items, end_ns).unwrap();
     let k = &r.core;
     assert_eq!(r.stalls, 0, "{label}");
-    assert!(
-        r.checks as u64 >= end_ns / 50_000 / 2,
+    assert_eq!(
+        u64::from(r.checks),
+        end_ns / tasks::SUPERVISE_NS,
         "{label}: {} checks",
         r.checks
     );
+    assert!(r.polls > 0, "{label}");
     assert_eq!(k.now_ns(), p.now_ns(), "{label}");
     assert_eq!(k.head_output(), p.head_output(), "{label}");
     assert_eq!(k.sent(), p.sent(), "{label}");
@@ -945,7 +949,7 @@ fn same_as_tasks(c: &Config, items: &[Timed], end_ns: u64, label: &str) {
     assert_eq!(k.gate(), p.gate(), "{label}");
     assert_eq!(k.bridge_counters(), p.bridge_counters(), "{label}");
     assert_eq!(k.counters(), p.counters(), "{label}");
-    assert!(!p.sent().is_empty(), "{label}");
+    r
 }
 
 #[test]
@@ -977,15 +981,88 @@ fn task_graph_matches_the_synchronous_core() {
                     Protocol::Hans => head_hans_status(100, 1_000, Alarms::POWER, 40_000_000),
                 };
                 let items = stimulus::merge(vec![items, status]);
-                same_as_tasks(
+                let r = same_as_tasks(
                     &c,
                     &items,
                     1_600_000,
                     &format!("{ctrl:?} -> {head:?} {timing:?}"),
                 );
+                assert!(!r.core.sent().is_empty(), "{ctrl:?} -> {head:?} {timing:?}");
             }
         }
     }
+}
+
+/// Tasks that wait only for time must be woken by the clock alone (a real
+/// executor polls a task only after a wake): after the controller's last frame
+/// nothing but the clock moves, yet the supervisor checks at each of its periods
+/// and the bridge runs its output and fail-safe (input lost, hold, then park) up
+/// to the end. With no buffers at all, the same.
+#[test]
+fn task_graph_runs_on_time_alone() {
+    let t = GenTiming::default();
+    for head in PROTOCOLS {
+        let mut c = config(Protocol::Xy2, head, Timing::FreeRunning);
+        c.failsafe.hold_us = 2_000;
+        let label = format!("Xy2 -> {head:?}");
+        let sent = frames(&c, &t, 30);
+        let stim = stimulus::controller_signal(&c, &sent, &t).unwrap();
+        let items =
+            stimulus::capture(&c, &stim.wave, Options::default().hans_sample_hz, 0.2).unwrap();
+        let items = stimulus::chunk(items, 2_000);
+        let last = items.last().map(|it| it.t_ns).unwrap();
+        let end = last + 5_000_000;
+        let r = same_as_tasks(&c, &items, end, &label);
+        assert_eq!(r.core.now_ns(), end, "{label}");
+        let states = r.core.states();
+        assert!(
+            states.iter().any(|s| s.value == LinkState::Running),
+            "{label}: {states:?}"
+        );
+        for lost in [LinkState::Holding, LinkState::Safe] {
+            assert!(
+                states.iter().any(|s| s.t_ns > last && s.value == lost),
+                "{label}: no {lost:?} after the last buffer at {last} ns: {states:?}"
+            );
+        }
+        assert!(
+            r.core.gate().iter().all(|g| g.t_ns <= last || !g.value),
+            "{label}: {:?}",
+            r.core.gate()
+        );
+        // Free-running slots keep coming after the input stopped.
+        let slots_after = r
+            .core
+            .sent()
+            .iter()
+            .filter(|f| f.decided_ns > last + 1_000_000);
+        assert!(slots_after.count() > 100, "{label}");
+
+        let r = same_as_tasks(&c, &[], 2_000_000, &format!("{label}, no buffers"));
+        assert_eq!(r.core.now_ns(), 2_000_000, "{label}");
+        assert_eq!(r.checks, 40, "{label}");
+    }
+}
+
+/// A buffer the graph cannot take stops the run with the pipeline's error, not a
+/// panic or a hang.
+#[test]
+fn task_graph_reports_bad_input() {
+    let c = config(Protocol::Xy2, Protocol::Xy3, Timing::FreeRunning);
+    let items = [Timed {
+        t_ns: 10_000,
+        buffers: stimulus::Buffers::Hans(Default::default()),
+    }];
+    let e = tasks::run(&c, Options::default(), &items, 100_000).err();
+    assert!(
+        matches!(
+            e,
+            Some(TaskError::Pipeline(PipelineError::WrongInput { .. }))
+        ),
+        "{e:?}"
+    );
+    let msg = e.map(|e| e.to_string()).unwrap_or_default();
+    assert!(msg.contains("input is"), "{msg}");
 }
 
 /// Added latency (simulated time, so exact): slaved output within the modelled

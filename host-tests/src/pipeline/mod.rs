@@ -49,8 +49,8 @@
 //! # Parts
 //! - [`Pipeline`] = controller-side receiver + head-side status receiver + [`Core`]
 //!   (bridge, output clock and encoder, controller-side status);
-//! - [`tasks`]: the same parts as the firmware's task graph (embassy-sync channels,
-//!   simulated clock), tested to give the same output;
+//! - [`tasks`]: the same parts as the firmware's task graph (embassy-executor
+//!   tasks, embassy-sync channels, simulated clock), tested to give the same output;
 //! - [`stimulus`]: controller signals from `shared`'s transmitters, waveforms ->
 //!   time-stamped DMA buffers, head status stimuli;
 //! - [`check`]: independent decoding of the head-side output, expected values;
