@@ -327,11 +327,11 @@ impl Pipeline {
     /// `[now_ns, now_ns + span_ns)` by where they lie in the chunk, as the firmware's
     /// bridge loop spreads a half's events over the output slots of its next batch
     /// (`shared::bridge::pacing`): an event decided after `p` of the chunk's `n`
-    /// units (samples, X bytes, ring words) is applied at `now_ns + span_ns * (p -
-    /// 1) / n`. A free-running output then carries consecutive frames in
-    /// consecutive slots instead of only the newest of the chunk, and fault events
-    /// take no time of their own: a frame goes where its bits were. Later calls
-    /// must not start before the last event's time.
+    /// units (samples, X bytes, ring words) is applied at
+    /// `now_ns + span_ns * (p - 1) / n`. A free-running output then carries
+    /// consecutive frames in consecutive slots instead of only the newest of the
+    /// chunk, and fault events take no time of their own: a frame goes where its
+    /// bits were. Later calls must not start before the last event's time.
     pub fn feed_spread(
         &mut self,
         now_ns: u64,
