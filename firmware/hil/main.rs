@@ -181,6 +181,79 @@ mod tests {
         }
     }
 
+    /// Slaved output (README "Slaved timing"): frame slots and idle slots (clock
+    /// stopped, every line low) mixed at random, as the bridge loop writes them when
+    /// the input leaves slots empty. Jumpers as `xy2_waveform_loopback`. The
+    /// TIM1 sampler takes a sample per CLK falling edge, so an idle slot must add no
+    /// sample: what comes back is exactly the frames' bits back to back, with
+    /// their SYNC pattern and X words (the gaps invisible to our receiver).
+    #[test]
+    async fn xy2_slaved_idle_slots_loopback(board: Board) {
+        use shared::xy2::tx::{OutPinMap, Transmitter, TxFrame};
+        use shared::xy2::{encode, Frame as Frame2};
+        const TICKS: usize = 40;
+        const SLOTS: usize = 25;
+        let r = board.res;
+        let w = r.wave;
+        let _p1 = Output::new(w.pins.p1, Level::Low, Speed::VeryHigh);
+        let _p2 = Output::new(w.pins.p2, Level::Low, Speed::VeryHigh);
+        let _p3 = Output::new(w.pins.p3, Level::Low, Speed::VeryHigh);
+        let in_ring = dma_ring!(".sram2", u16, 2 * 20 * SLOTS);
+        let x = r.xy2_in;
+        let mut sampler = Xy2Sampler::new(x.tim, x.clk, x.dma, Irqs, pac::GPIOG, in_ring);
+        let ring = dma_ring!(".sram2", u32, 2 * TICKS * SLOTS);
+        let mut out =
+            WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
+        let pins = OutPinMap {
+            clk: P1 as u8,
+            sync: P2 as u8,
+            x: P3 as u8,
+            y: P4 as u8,
+            z: None,
+        };
+        let link = LinkConfig::default();
+        let tx = Transmitter::new(pins, TICKS, link).unwrap();
+        out.start();
+
+        let mut prng = Prng(0x0BAD_CAFE);
+        let mut half = [0u32; TICKS * SLOTS];
+        let mut sent: heapless::Vec<u32, SLOTS> = heapless::Vec::new();
+        for (i, slot) in half.chunks_exact_mut(TICKS).enumerate() {
+            // Slot 0 always carries a frame, then about half of the slots do.
+            if i > 0 && prng.bit() {
+                slot.fill(tx.idle_word());
+                continue;
+            }
+            let v = (i as u16).wrapping_mul(2_459) ^ 0x5A5A;
+            let f = Frame2::Position16(v);
+            tx.write_frame(
+                slot,
+                &TxFrame {
+                    x: f,
+                    y: f,
+                    z: None,
+                },
+            )
+            .unwrap();
+            sent.push(encode(f, &link).unwrap()).unwrap();
+        }
+        out.write_half(&half).await.unwrap();
+
+        let mut got = [0u16; 20 * SLOTS];
+        let got = &mut got[..20 * sent.len()];
+        with_timeout(WAIT, sampler.read_exact(got))
+            .await
+            .unwrap()
+            .unwrap();
+        for (k, (frame, word)) in got.chunks_exact(20).zip(&sent).enumerate() {
+            for (b, s) in frame.iter().enumerate() {
+                assert_eq!(s & 1 == 1, b != 19, "SYNC, frame {} bit {}", k, b);
+                let x = word >> (19 - b) & 1 == 1;
+                assert_eq!(s >> 1 & 1 == 1, x, "X, frame {} bit {}", k, b);
+            }
+        }
+    }
+
     /// XY2-100 STATUS word, head side. Jumper: PD3 -> PG9 (the head's STATUS input).
     /// PD3 plays a head that shifts a status frame out on our clock, changing its
     /// line on every CLK falling edge (PD0, no jumper needed); the TIM8 CC1 sampler's

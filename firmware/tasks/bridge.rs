@@ -13,8 +13,9 @@
 use embassy_stm32::gpio::{Input, Level, Output, Speed};
 use embassy_stm32::pac;
 use embassy_time::Instant;
-use shared::bridge::{Config, StatusForm};
-use shared::model::LineEvent;
+use shared::bridge::pacing::{batch_slot, Refused, SlotQueue};
+use shared::bridge::{Config, StatusForm, Timing};
+use shared::model::{FaultKind, Line, LineEvent};
 
 use super::bridge_core::Core;
 use super::encode::{idle_word, Encoder};
@@ -29,9 +30,23 @@ use xy_bridge::dma_ring;
 /// Waveform words per batch at most (4..8 MHz ticks: 1000 words = 125..250 us).
 const WAVE_BATCH: usize = 1000;
 
-/// Input events buffered per batch: up to three XY2 halves of 25 frame periods (or
-/// four XY3 halves of up to 21), each a frame or up to three line faults.
+/// Input events waiting for their output slot: up to three XY2 halves of 25 frame
+/// periods (or four XY3 halves of up to 21), each a frame or up to three line
+/// faults; slaved, plus the frames carried over (at most [`SLAVED_BACKLOG`]
+/// batches' worth).
 const MAX_EVENTS: usize = 192;
+
+/// Slaved timing: batches of frames that may wait for an output slot. Input faster
+/// than the slots (the controller's clock above `output.frame_rate_hz`) fills this,
+/// and each frame beyond it is dropped (a `Dropped` fault on `Line::Framing`,
+/// counted by the bridge) rather than the latency growing without end.
+const SLAVED_BACKLOG: usize = 2;
+
+/// What a slaved frame that found the backlog full becomes for the bridge.
+const BACKLOG_DROP: LineEvent = LineEvent::Fault {
+    line: Line::Framing,
+    kind: FaultKind::Dropped,
+};
 
 /// The bridge: controller-side receiver -> [`Bridge`] -> head-side transmitter, one
 /// batch of whole output frames (about one DMA half) per iteration, on TIM8's BSRR
@@ -148,37 +163,45 @@ pub async fn bridge_wave_out(
     // Output frame periods written so far (period 0 = the first slot written).
     let mut period = 0u64;
     let mut slot_ns = 0u64;
-    let mut events: heapless::Vec<LineEvent, MAX_EVENTS> = heapless::Vec::new();
+    // Slaved: one output frame per input frame (README "Slaved timing").
+    let slaved = config.output.timing == Timing::Slaved;
+    let max_frames = if slaved {
+        SLAVED_BACKLOG * frames_per_batch
+    } else {
+        MAX_EVENTS
+    };
+    let mut queue: SlotQueue<MAX_EVENTS> = SlotQueue::new(max_frames);
     loop {
         let now_ns = Instant::now().as_micros().saturating_mul(1000);
-        // Input: every half that arrived since the last batch, decoded into neutral
-        // events (in time order).
-        events.clear();
-        core.take_input(&mut |le| {
-            if events.push(le).is_err() {
-                Stats::bump(&STATS.input_overruns);
+        // Input: the halves that arrived since the last batch, decoded into neutral
+        // events in time order, each queued for the slot of this batch where its
+        // bits lie in the drained input (`pacing::batch_slot`: the input halves and
+        // the output batch cover about the same time), so consecutive input frames
+        // reach consecutive slots and faults take no slot of their own.
+        let base = period;
+        core.take_input(&mut |at, units, le| {
+            let due = base + batch_slot(at, units, frames_per_batch) as u64;
+            match queue.push(due, le) {
+                Ok(()) => {}
+                Err(Refused::Backlog(_)) => {
+                    if queue.push(due, BACKLOG_DROP).is_err() {
+                        Stats::bump(&STATS.input_overruns);
+                    }
+                }
+                Err(Refused::Full(_)) => Stats::bump(&STATS.input_overruns),
             }
         });
         // Slot times continue from the last batch and never go back, so the bridge
         // sees one monotonic clock.
         slot_ns = slot_ns.max(now_ns);
         core.take_head_status(slot_ns);
-        // Output: one tick per frame slot. The input events are spread over the
-        // batch's slots in order (the input half and the output batch cover about the
-        // same time), so consecutive input frames reach consecutive slots instead of
-        // all but the newest being skipped.
-        let n_events = events.len();
-        let mut next_event = 0;
+        // Output: one tick per frame slot, with the events due by then. Free-running,
+        // every event due (all of this batch's by its last slot); slaved, at most
+        // one frame per slot, the rest carried to the next slots. A slot without a
+        // frame is idle: no clock edges, XY3-100 SYNC high.
         let mut gate = true;
-        for (i, slot) in batch
-            .chunks_exact_mut(tpf)
-            .take(frames_per_batch)
-            .enumerate()
-        {
-            let due = ((i + 1) * n_events / frames_per_batch).max(next_event);
-            let input = events.get(next_event..due).unwrap_or_default();
-            next_event = due;
-            let (frame, slot_gate) = core.slot(input.iter().copied(), slot_ns);
+        for slot in batch.chunks_exact_mut(tpf).take(frames_per_batch) {
+            let (frame, slot_gate) = core.slot(queue.take(period, slaved), slot_ns);
             slot_ns = slot_ns.saturating_add(period_ns);
             let encoded = encoder.encode(frame.as_ref(), slot);
             if encoded {

@@ -9,7 +9,7 @@ use core::sync::atomic::Ordering;
 
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::watch::AnonReceiver;
-use shared::bridge::{Bridge, Config, LinkState, Output, StatusForm, Timing, ZSource};
+use shared::bridge::{Bridge, Config, LinkState, Output, StatusForm, ZSource};
 use shared::model::{Axis, FaultKind, ForwardFrame, HeadStatus, Line, LineEvent};
 use shared::xy3::back::SEND_BUF_LEN;
 use shared::xy3::BackRate;
@@ -18,7 +18,7 @@ use shared::{xy2, xy3};
 use crate::channels::{
     set_laser_gate, BridgeSnapshot, Stats, Xy3Raw, BACK_RATE, BACK_TX, BRIDGE_BEAT,
     BRIDGE_SNAPSHOT, CTRL_STATUS_OK, CTRL_STATUS_WORD, HEAD_BACK_RATE, HEAD_STATUS, LINK_RUNNING,
-    RAW_INPUT, SNAPSHOT_WANTED, STATS, XY3_HALF, XY3_INPUT, XY3_LINES, XY3_RESYNC,
+    RAW_INPUT, SNAPSHOT_WANTED, STATS, XY2_HALF, XY3_HALF, XY3_INPUT, XY3_LINES, XY3_RESYNC,
 };
 use crate::config::{Controller, Head};
 
@@ -83,17 +83,23 @@ impl Xy3Decoder {
         }
     }
 
-    /// Feeds one half and hands the events of every completed period to `emit`.
-    fn feed(&mut self, raw: &Xy3Raw, emit: &mut impl FnMut(LineEvent)) {
+    /// Feeds one half and hands the events of every completed period to `emit`,
+    /// with the period's end position in this half's X bytes (`0..=XY3_HALF`: a
+    /// period closed by a frame end that came with this half but counts bytes of an
+    /// earlier one is at 0).
+    fn feed(&mut self, raw: &Xy3Raw, emit: &mut impl FnMut(u32, LineEvent)) {
         if self.session != Some(raw.session) || raw.first_byte != self.next_byte {
             // A new input session (all lines restarted) or a lost half: the byte
             // stream is not continuous, so start a receiver at this half's count
             // (pending frame ends of the old stream are meaningless now).
             if self.session.is_some() {
-                emit(LineEvent::Fault {
-                    line: Line::Framing,
-                    kind: FaultKind::Dropped,
-                });
+                emit(
+                    0,
+                    LineEvent::Fault {
+                        line: Line::Framing,
+                        kind: FaultKind::Dropped,
+                    },
+                );
             }
             self.rx = xy3::rx::Receiver::with_origin(self.lines, raw.first_byte);
             self.session = Some(raw.session);
@@ -122,7 +128,10 @@ impl Xy3Decoder {
             .as_micros()
             .saturating_mul(1000);
         while let Some(period) = self.rx.poll() {
-            if self.watch.period(now_ns, &period, &mut *emit) {
+            // Signed: an end before this half's first byte wraps to a large u32.
+            let at = (period.end.wrapping_sub(raw.first_byte) as i32).clamp(0, XY3_HALF as i32);
+            let mut emit_at = |e| emit(at as u32, e);
+            if self.watch.period(now_ns, &period, &mut emit_at) {
                 defmt::warn!(
                     "xy3 in: lines out of step; restarting session {}",
                     raw.session
@@ -160,12 +169,9 @@ impl Core {
         head: Head,
         controller: Controller,
     ) -> Result<Core, &'static str> {
+        // Slaved timing: `Config::validate` (inside) refuses it for a HANS-100
+        // head, whose line has no room for a frame more than the input's.
         let bridge = Bridge::new(config).map_err(|_| "configuration refused")?;
-        if config.output.timing == Timing::Slaved {
-            // Slaved output sends each frame from `on_line_event`, which needs the
-            // output position per input frame; both loops run free.
-            return Err("output.timing = \"slaved\" is not supported by this firmware yet");
-        }
         let decoder = match controller {
             Controller::Xy2 => {
                 let link = xy2::LinkConfig {
@@ -195,18 +201,36 @@ impl Core {
         })
     }
 
-    /// Decodes every input half that arrived since the last call; the events go to
-    /// `sink` in time order.
-    pub(super) fn take_input(&mut self, sink: &mut impl FnMut(LineEvent)) {
+    /// Decodes the input halves queued at the call (halves arriving meanwhile wait
+    /// for the next call, so the input of a batch is known before its events are
+    /// placed). Each event goes to `sink` in time order as `(position, units,
+    /// event)`: where it was decided in the drained input (units consumed: XY2-100
+    /// samples, XY3-100 X bytes; halves back to back) and the units drained in all,
+    /// for `shared::bridge::pacing::batch_slot`.
+    pub(super) fn take_input(&mut self, sink: &mut impl FnMut(u32, u32, LineEvent)) {
         match &mut self.decoder {
             Decoder::Xy2(rx) => {
-                while let Ok(raw) = RAW_INPUT.try_receive() {
-                    rx.feed(&raw, &mut |ev| ev.line_events(&mut *sink));
+                let halves = RAW_INPUT.len();
+                let units = (halves * XY2_HALF) as u32;
+                for h in 0..halves {
+                    let Ok(raw) = RAW_INPUT.try_receive() else {
+                        break;
+                    };
+                    let base = (h * XY2_HALF) as u32;
+                    rx.feed_at(&raw, &mut |at, ev| {
+                        ev.line_events(&mut |le| sink(base + at as u32, units, le))
+                    });
                 }
             }
             Decoder::Xy3(rx) => {
-                while let Ok(raw) = XY3_INPUT.try_receive() {
-                    rx.feed(&raw, sink);
+                let halves = XY3_INPUT.len();
+                let units = (halves * XY3_HALF) as u32;
+                for h in 0..halves {
+                    let Ok(raw) = XY3_INPUT.try_receive() else {
+                        break;
+                    };
+                    let base = (h * XY3_HALF) as u32;
+                    rx.feed(&raw, &mut |at, le| sink(base + at, units, le));
                 }
             }
             Decoder::Hans => super::hans_in::take_events(sink),
@@ -228,30 +252,46 @@ impl Core {
     /// to the bridge, then `tick`. Returns the frame to send (`None` before the
     /// bridge was first `Running`, and when the bridge sends nothing) and whether
     /// the bridge allows the laser gate.
+    ///
+    /// Free-running, the engine keeps the newest frame for `tick`. Slaved, a
+    /// forwarded frame comes straight from `on_line_event` (the loops hand a slot
+    /// at most one frame: `pacing::SlotQueue`), and `tick` adds only the fail-safe
+    /// frames (hold, park) while the link is not running.
     pub(super) fn slot(
         &mut self,
         events: impl IntoIterator<Item = LineEvent>,
         t_ns: u64,
     ) -> (Option<ForwardFrame>, bool) {
+        let mut slaved = None;
         for le in events {
-            // Free-running only (checked in `new`): the engine keeps the newest
-            // frame for the next `tick`; the immediate output is always `None`.
-            let _ = self.bridge.on_line_event(t_ns, le);
+            if let Some(o) = self.bridge.on_line_event(t_ns, le) {
+                self.note_rates(&o);
+                slaved = o.frame.or(slaved);
+            }
         }
         let o: Output = self.bridge.tick(t_ns);
         let running = o.state == LinkState::Running;
         self.started |= running;
         LINK_RUNNING.store(running, Ordering::Relaxed);
-        // Each side has its UART: the controller's waits for the bytes queued at
-        // the old rate (`backchannel`), the head's follows the forwarded command.
+        self.note_rates(&o);
+        let frame = if self.started {
+            slaved.or(o.frame)
+        } else {
+            None
+        };
+        (frame, o.laser.gate)
+    }
+
+    /// A backchannel rate change in a bridge output. Each side has its UART: the
+    /// controller's waits for the bytes queued at the old rate (`backchannel`), the
+    /// head's follows the forwarded command at once.
+    fn note_rates(&mut self, o: &Output) {
         if let Some(rate) = o.controller_back_rate {
             self.rate_due = Some(rate);
         }
         if let Some(rate) = o.head_back_rate {
             HEAD_BACK_RATE.signal(rate);
         }
-        let frame = if self.started { o.frame } else { None };
-        (frame, o.laser.gate)
     }
 
     /// After a batch of slots (`gate`: every slot allowed the gate) at bridge time

@@ -119,7 +119,9 @@ pub async fn bridge_hans_out(
             continue;
         }
 
-        core.take_input(&mut |le| {
+        // Positions are not needed here: the queue hands each slot one frame (and
+        // the faults before it), so faults take no slot anyway.
+        core.take_input(&mut |_, _, le| {
             if pending.push_back(le).is_err() {
                 Stats::bump(&STATS.input_overruns);
             }

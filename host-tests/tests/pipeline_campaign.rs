@@ -191,8 +191,8 @@ fn a_million_faulted_frames_none_corrupted() {
     assert!(faulted > total / 4);
     // Every fault costs its frame (plus, after framing faults, sometimes the next
     // one while the receiver resynchronises), the 9 frames of each block's start-up,
-    // and the frames the free-running output skipped (two in one slot where the
-    // spread events bunch up: the spread counts fault events too); nothing else.
+    // and the few frames the free-running output skipped (the spread goes by sample
+    // position, so faults take no slot); nothing else.
     assert!(lost >= faulted, "{lost} < {faulted}");
     assert!(
         lost <= faulted + faulted / 4 + skipped + u64::from(BLOCKS) * 12,

@@ -323,23 +323,27 @@ impl Pipeline {
     }
 
     /// Like [`Pipeline::feed`] for a chunk holding many frames (a DMA half that
-    /// arrived at `now_ns`): its receiver events are applied in order, spread evenly
-    /// over `[now_ns, now_ns + span_ns)` (event `k` of `n` at `now_ns + span_ns * k /
-    /// n`), as the firmware's bridge loop spreads a half's events over the output
-    /// slots of its next batch. A free-running output then carries consecutive
-    /// frames in consecutive slots instead of only the newest of the chunk. Later
-    /// calls must not start before the last event's time.
+    /// arrived at `now_ns`): its receiver events are applied in order, spread over
+    /// `[now_ns, now_ns + span_ns)` by where they lie in the chunk, as the firmware's
+    /// bridge loop spreads a half's events over the output slots of its next batch
+    /// (`shared::bridge::pacing`): an event decided after `p` of the chunk's `n`
+    /// units (samples, X bytes, ring words) is applied at
+    /// `now_ns + span_ns * (p - 1) / n`. A free-running output then carries
+    /// consecutive frames in consecutive slots instead of only the newest of the
+    /// chunk, and fault events take no time of their own: a frame goes where its
+    /// bits were. Later calls must not start before the last event's time.
     pub fn feed_spread(
         &mut self,
         now_ns: u64,
         span_ns: u64,
         chunk: ControllerInput<'_>,
     ) -> Result<(), PipelineError> {
-        let mut events: Vec<LineEvent> = Vec::new();
-        self.input.feed(chunk, &mut events)?;
-        let n = events.len().max(1) as u64;
-        for (k, e) in events.iter().enumerate() {
-            let t = now_ns + span_ns * k as u64 / n;
+        let mut events = Vec::new();
+        let units = self.input.feed_at(chunk, &mut events)?;
+        let n = u64::from(units.max(1));
+        for (at, e) in &events {
+            let unit = u64::from((*at).min(units).saturating_sub(1));
+            let t = now_ns + span_ns * unit / n;
             self.core.line_events(t, std::slice::from_ref(e));
         }
         Ok(())
@@ -356,5 +360,80 @@ impl Pipeline {
         self.core
             .head_status(now_ns, seen, self.head_status.status(), &faults);
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use shared::bridge::{Protocol, Timing, ZSource};
+    use shared::model::{Axis, Line};
+    use shared::xy2;
+
+    /// The 20 port samples of one XY2-100 frame period on the controller pins
+    /// (sample k = word bit 19 - k, SYNC high for samples 0..=18), from the
+    /// protocol, with `bad` flipping the parity bit of every channel.
+    fn period(v: u16, bad: bool) -> Vec<u16> {
+        let p = CONTROLLER_PINS_XY2;
+        let link = xy2::LinkConfig::default();
+        let word = |v: u16| {
+            let w = xy2::encode(xy2::Frame::Position16(v), &link).unwrap();
+            w ^ u32::from(bad)
+        };
+        let (x, y, z) = (word(v), word(v ^ 0x5555), word(0x8000));
+        (0..20)
+            .map(|k| {
+                let bit = |w: u32| ((w >> (19 - k)) & 1) as u16;
+                u16::from(k < 19) << p.sync | bit(x) << p.x | bit(y) << p.y | bit(z) << p.z.unwrap()
+            })
+            .collect()
+    }
+
+    /// A third of the periods with a check failure on all three channels (three
+    /// fault events, no frame), in DMA halves of 25 periods spread over 250 us: at
+    /// the input's own rate every valid frame gets an output slot of its own, so the
+    /// free-running output neither skips nor loses one. Spreading by event count
+    /// (the old rule) put five events on three slots and skipped frames here.
+    #[test]
+    fn spread_by_position_gives_faults_no_slot() {
+        let mut c = Config::default();
+        c.controller.protocol = Protocol::Xy2;
+        c.head.protocol = Protocol::Xy3;
+        c.z.source = ZSource::Input;
+        c.output.timing = Timing::FreeRunning;
+        c.failsafe.recovery_frames = 1;
+        let mut samples = vec![0u16];
+        let n = 2_000u16;
+        for k in 0..n {
+            samples.extend(period(k, k % 3 == 1));
+        }
+        let mut p = Pipeline::new(&c, Options::default()).unwrap();
+        for (k, half) in samples[1..].chunks(500).enumerate() {
+            let t_ns = 1_000 + (k as u64 + 1) * 250_000;
+            let first = if k == 0 { &samples[..1] } else { &[][..] };
+            p.feed(t_ns - 250_000, ControllerInput::Xy2(first)).unwrap();
+            p.feed_spread(t_ns, 250_000, ControllerInput::Xy2(half))
+                .unwrap();
+        }
+        p.run_until(u64::from(n) * 10_000 + 600_000);
+        let k = p.bridge_counters();
+        let faulted = (0..n).filter(|k| k % 3 == 1).count() as u64;
+        let x = k.line(Line::Axis(Axis::X));
+        assert_eq!(x.check_failed, faulted, "{k:?}");
+        assert_eq!(k.frames_ok, u64::from(n) - faulted);
+        assert_eq!(k.skipped, 0, "{k:?}");
+        // Every valid frame reached the head, once each and in order
+        // (`recovery_frames = 1`: the first one already runs the link).
+        let sent: Vec<u32> = p
+            .sent()
+            .iter()
+            .filter(|s| s.state == LinkState::Running)
+            .map(|s| s.frame.axes[0].unwrap().aligned())
+            .collect();
+        let mut distinct = sent.clone();
+        distinct.dedup();
+        assert_eq!(distinct.len() as u64, k.frames_ok);
+        assert!(distinct.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(k.line(Line::Framing).framing, 0);
     }
 }

@@ -76,6 +76,7 @@ mod config;
 mod counters;
 mod engine;
 pub mod head_out;
+pub mod pacing;
 #[cfg(feature = "serde")]
 pub mod serde_impl;
 pub mod status;

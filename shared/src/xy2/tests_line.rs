@@ -758,3 +758,42 @@ fn status_outputs() {
         Some(PinError::OutOfRange { bit: 16 })
     );
 }
+
+/// `feed_at` reports each event after the sample that completed it (samples
+/// consumed): a frame after its 20th bit, a short SYNC after its falling edge, an
+/// overlong one after its 20th high sample; the same events as `feed`, whatever the
+/// chunking.
+#[test]
+fn feed_at_positions_are_the_completing_samples() {
+    let mut s = vec![0u16];
+    s.extend(frame_samples(w16(1), w16(2), w16(3)));
+    // A SYNC high for 5 bits only (framing fault at its falling edge).
+    s.extend([1, 1, 1, 1, 1, 0]);
+    s.extend(frame_samples(w16(4), w16(5), w16(6)));
+    // SYNC stuck high: overlong at the 20th high sample.
+    s.extend([1; 25]);
+    let mut rx = Receiver::new(PINS, LinkConfig::default()).unwrap();
+    let mut got = Vec::new();
+    rx.feed_at(&s, &mut |at, e| got.push((at, e)));
+    let positions: Vec<usize> = got.iter().map(|(at, _)| *at).collect();
+    // Frame 1 ends with sample 20, the short SYNC falls at 26, the resync and
+    // frame 2 end with 46, the overlong run's 20th high sample is 66.
+    assert_eq!(positions, [21, 27, 47, 47, 67]);
+    assert_eq!(got[0].1, ok_period(1, 2, 3));
+    assert_eq!(
+        got[1].1,
+        Event::Framing(FramingFault::Short { high_bits: 5 })
+    );
+    assert_eq!(got[2].1, Event::Resync);
+    assert_eq!(got[3].1, ok_period(4, 5, 6));
+    assert_eq!(got[4].1, Event::Framing(FramingFault::Overlong));
+    // Chunked: positions are relative to each chunk, the events the same.
+    let mut rx = Receiver::new(PINS, LinkConfig::default()).unwrap();
+    let mut chunked = Vec::new();
+    let mut base = 0;
+    for part in s.chunks(7) {
+        rx.feed_at(part, &mut |at, e| chunked.push((base + at, e)));
+        base += part.len();
+    }
+    assert_eq!(chunked, got);
+}

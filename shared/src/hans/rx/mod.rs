@@ -344,6 +344,14 @@ impl HansRx {
     /// chunks must have equal length; if not, only the common length is decoded and
     /// a [`FaultKind::Dropped`] period fault is reported.
     pub fn push(&mut self, chunks: &[&[u16]], sink: &mut impl FnMut(RxEvent)) {
+        self.push_at(chunks, &mut |_, e| sink(e));
+    }
+
+    /// [`HansRx::push`], with each event's position: the number of words of the
+    /// chunks consumed when it was decided (0 for the unequal-length fault, which
+    /// is about the whole push). A bridge loop spreads a DMA half's events over its
+    /// output slots by this position, so faults take no output slot of their own.
+    pub fn push_at(&mut self, chunks: &[&[u16]], sink: &mut impl FnMut(usize, RxEvent)) {
         let mut len = usize::MAX;
         let mut longest = 0;
         for (n, chunk) in chunks.iter().enumerate().take(CHANNELS) {
@@ -359,10 +367,13 @@ impl HansRx {
             len = 0;
         }
         if longest > len {
-            sink(RxEvent::Fault {
-                channel: None,
-                kind: FaultKind::Dropped,
-            });
+            sink(
+                0,
+                RxEvent::Fault {
+                    channel: None,
+                    kind: FaultKind::Dropped,
+                },
+            );
         }
         let mut at = 0;
         loop {
@@ -373,11 +384,12 @@ impl HansRx {
                 if missing <= 0 {
                     // The start edges of this frame move the timing on from the
                     // last one, then the frame is decoded.
+                    let mut sink = |e| sink(at, e);
                     if let Some((verified, same)) = self.pending.take() {
-                        self.next(verified, same, sink);
+                        self.next(verified, same, &mut sink);
                     }
                     if self.locked {
-                        self.frame(sink);
+                        self.frame(&mut sink);
                     }
                     self.need = self.need();
                     continue;
@@ -399,7 +411,7 @@ impl HansRx {
                     self.idle = self.idle.saturating_add(16 << FRAC);
                     if self.idle >= self.timing.nominal_period() {
                         self.idle = self.idle.saturating_sub(self.timing.nominal_period());
-                        self.missing(self.used, sink);
+                        self.missing(self.used, &mut |e| sink(at, e));
                     }
                 }
             }

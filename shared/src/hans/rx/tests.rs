@@ -128,6 +128,46 @@ fn chunking_does_not_change_events() {
     }
 }
 
+/// `push_at` positions: every frame is reported once the word holding its last
+/// bit is in (at most a few words later: the last centre on every channel), in
+/// order, and the absolute positions do not depend on the chunking.
+#[test]
+fn push_at_positions_follow_the_frames_last_bits() {
+    let ratio = 3.2;
+    let sent = frames(30, 5);
+    let words = oversample(&line_bits(&sent), ratio, 0.0);
+    for mode in MODES {
+        let mut whole = Vec::new();
+        for chunk in [usize::MAX, 1, 16, 61] {
+            let mut rx = HansRx::new(40_000_000, mode).unwrap();
+            let mut got = Vec::new();
+            let mut base = 0;
+            for part in words.chunks(chunk.min(words.len())) {
+                rx.push_at(&[part; 5], &mut |at, e| got.push((base + at, e)));
+                base += part.len();
+            }
+            if whole.is_empty() {
+                whole = got.clone();
+            }
+            assert_eq!(got, whole, "{mode:?} chunk {chunk}");
+        }
+        let mut n = 0;
+        for (at, e) in &whole {
+            let RxEvent::Frame(f) = e else { continue };
+            let k = sent.iter().position(|s| s == f).unwrap();
+            // The word holding the frame's last sample, counted 1-based.
+            let last = (((k + 1) * 125) as f64 * ratio / 16.0).ceil() as usize;
+            assert!(
+                (last..=last + 3).contains(at),
+                "{mode:?}: frame {k} at word {at}, its last bit in word {last}"
+            );
+            n += 1;
+        }
+        assert!(n >= sent.len() - 3, "{mode:?}: {n} frames");
+        assert!(whole.windows(2).all(|w| w[0].0 <= w[1].0), "{mode:?}");
+    }
+}
+
 #[test]
 fn a_flipped_bit_is_never_published() {
     let sent = frames(12, 3);
