@@ -288,8 +288,14 @@ pub struct HansRaw {
 pub static HANS_INPUT: Channel<CriticalSectionRawMutex, HansRaw, 2> = Channel::new();
 
 /// Decoded HANS-100 controller events to the bridge loop, which drains them every
-/// output batch (or slot). The decoder waits while it is full: the bridge paces it.
-pub static HANS_EVENTS: Channel<CriticalSectionRawMutex, LineEvent, 64> = Channel::new();
+/// output batch (or slot), each with its word position in the input stream (for
+/// spreading over the output slots). The decoder waits while it is full: the
+/// bridge paces it.
+pub static HANS_EVENTS: Channel<CriticalSectionRawMutex, (u32, LineEvent), HANS_EVENTS_DEPTH> =
+    Channel::new();
+
+/// Depth of [`HANS_EVENTS`].
+pub const HANS_EVENTS_DEPTH: usize = 64;
 
 /// HANS STATUS frames towards a HANS-100 controller (`Bridge::hans_status_frame`),
 /// kept full by the bridge loop, written into the SAI2 ring by `hans_status_out`.

@@ -30,7 +30,9 @@ use shared::model::{FaultKind, Line, LineEvent};
 
 use super::Irqs;
 use crate::board::{HansInRes, Xy3InRes, HANS_FS_HZ};
-use crate::channels::{HansRaw, Stats, HANS_EVENTS, HANS_INPUT, HANS_IN_HALF, STATS};
+use crate::channels::{
+    HansRaw, Stats, HANS_EVENTS, HANS_EVENTS_DEPTH, HANS_INPUT, HANS_IN_HALF, STATS,
+};
 use crate::drivers::hans_lines::{HansLines, CHANNELS};
 use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::RxError;
@@ -162,17 +164,16 @@ pub async fn hans_decode(mode: Mode) {
             return;
         }
     };
-    let mut events: Vec<LineEvent, CHUNK_EVENTS> = Vec::new();
+    let mut events: Vec<(u32, LineEvent), CHUNK_EVENTS> = Vec::new();
     loop {
         let raw = HANS_INPUT.receive().await;
         if dec.session != Some(raw.session) || raw.first_word != dec.next_word {
             if dec.session.is_some() {
-                HANS_EVENTS
-                    .send(LineEvent::Fault {
-                        line: Line::Framing,
-                        kind: FaultKind::Dropped,
-                    })
-                    .await;
+                let gap = LineEvent::Fault {
+                    line: Line::Framing,
+                    kind: FaultKind::Dropped,
+                };
+                HANS_EVENTS.send((raw.first_word, gap)).await;
             }
             if let Ok(rx) = fresh() {
                 dec.rx = rx;
@@ -188,8 +189,12 @@ pub async fn hans_decode(mode: Mode) {
                     .unwrap_or_default()
             };
             let chunks = [chunk(0), chunk(1), chunk(2), chunk(3), chunk(4)];
-            dec.rx.push(&chunks, &mut |ev| {
-                if events.push(ev.to_line_event()).is_err() {
+            // Each event with its word position in the input stream (the bridge
+            // loop spreads them over its output slots by it).
+            let base = raw.first_word.wrapping_add(at as u32);
+            dec.rx.push_at(&chunks, &mut |pos, ev| {
+                let word = base.wrapping_add(pos as u32);
+                if events.push((word, ev.to_line_event())).is_err() {
                     // Not reachable (CHUNK_EVENTS bounds a chunk), but never silent.
                     Stats::bump(&STATS.input_overruns);
                 }
@@ -205,9 +210,25 @@ pub async fn hans_decode(mode: Mode) {
 }
 
 /// The decoded events waiting for the bridge, in order (the bridge loop's input for
-/// a HANS-100 controller).
-pub(super) fn take_events(sink: &mut impl FnMut(LineEvent)) {
-    while let Ok(ev) = HANS_EVENTS.try_receive() {
-        sink(ev);
+/// a HANS-100 controller), each as `(position, units, event)` for
+/// `shared::bridge::pacing::batch_slot`: its word position counted from the first
+/// event taken, and the span from the first to the last event taken (the decoder
+/// runs apart from the bridge loop, so the span of the input halves is not known
+/// here). At most one queue's worth is taken per call.
+pub(super) fn take_events(sink: &mut impl FnMut(u32, u32, LineEvent)) {
+    let mut taken: Vec<(u32, LineEvent), HANS_EVENTS_DEPTH> = Vec::new();
+    while !taken.is_full() {
+        let Ok(ev) = HANS_EVENTS.try_receive() else {
+            break;
+        };
+        // Cannot fail: the loop stops when `taken` is full.
+        let _ = taken.push(ev);
+    }
+    let (Some(&(first, _)), Some(&(last, _))) = (taken.first(), taken.last()) else {
+        return;
+    };
+    let units = last.wrapping_sub(first).saturating_add(1);
+    for (word, ev) in taken {
+        sink(word.wrapping_sub(first), units, ev);
     }
 }
