@@ -509,7 +509,7 @@ fn hans_fault(kind: FaultKind, channel: bool) -> &'static str {
         FaultKind::CheckFailed => "frame check failed",
         FaultKind::Resync => "lost alignment",
         FaultKind::Disagree => "verified channels disagree",
-        FaultKind::Dropped if channel => "missing (no pattern this period)",
+        FaultKind::Missing => "missing (no pattern this period)",
         FaultKind::Dropped => "input dropped",
         FaultKind::Framing => "framing",
     }
@@ -538,7 +538,7 @@ fn hans_record(
                 sum.error(&what);
                 // A channel missing from a period is no rejected frame: the frame
                 // came from the other channels, or the gap shows as silence.
-                if !(kind == FaultKind::Resync || channel.is_some() && kind == FaultKind::Dropped) {
+                if !matches!(kind, FaultKind::Resync | FaultKind::Missing) {
                     rejected.push(what);
                 }
             }

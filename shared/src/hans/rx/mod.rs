@@ -65,7 +65,7 @@
 //! bridge's [`LineEvent`]. Per-channel [`ChannelStats`] count frames that passed,
 //! frames that failed a check, losses of alignment and **missing** periods: every
 //! frame period in which a used channel delivered no pattern (not aligned: dead,
-//! stuck, unplugged) counts one and reports [`FaultKind::Dropped`] on that channel,
+//! stuck, unplugged) counts one and reports [`FaultKind::Missing`] on that channel,
 //! **every period it stays so**, also while the frame comes from the other channels
 //! (vote and super modes) and, while the timing is lost again (normal mode on a
 //! dead channel, or every channel dead), once per nominal frame period of input
@@ -73,7 +73,14 @@
 //! dead redundant channel is visible in its counters at the frame rate, never just
 //! once; a channel that comes back aligns at the next start edge and counts frames
 //! again. In every locked period each used channel counts exactly one of frames
-//! ok, check failures, missing. No frame that failed a check is ever published,
+//! ok, check failures, missing. **In the vote and super modes every decoded
+//! period ends in exactly one frame or one period fault** (`channel: None`;
+//! CheckFailed or Disagree, whatever the channels reported before it), and losing
+//! the shared timing reports a period [`FaultKind::Resync`]: there a channel fault
+//! alone never means a lost period, and the bridge breaks its recovery run on
+//! period faults only (a noisy backup channel must not keep the link in its
+//! fail-safe states while verified frames flow). In normal mode the one channel's
+//! faults are the period's. No frame that failed a check is ever published,
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
@@ -192,9 +199,14 @@ pub enum RxEvent {
     /// A frame that passed every check of its mode.
     Frame(Frame),
     /// A fault. `channel` is 1..=5 for a channel's own fault (a check failure, a
-    /// resync, a super-mode minority, or [`FaultKind::Dropped`]: the channel
-    /// delivered no pattern this period), `None` for the frame period as a whole (a
-    /// vote that failed its checks, a super-mode disagreement, input dropped).
+    /// resync, a super-mode minority, or [`FaultKind::Missing`]: the channel
+    /// delivered no pattern this period), `None` for the frame period as a whole:
+    /// in the vote and super modes a decoded period that publishes no frame
+    /// ([`FaultKind::CheckFailed`]: the vote failed, or no super-mode channel
+    /// verified; [`FaultKind::Disagree`]: no strict super-mode majority) or the
+    /// shared timing lost ([`FaultKind::Resync`]); in any mode input discarded
+    /// ([`FaultKind::Dropped`]). In normal mode the channel's faults are the
+    /// period's.
     Fault {
         /// The channel, or `None` for the period.
         channel: Option<u8>,
@@ -333,8 +345,9 @@ impl HansRx {
             .copied()
     }
 
-    /// Frame periods rejected as a whole: a vote that failed its checks, or a
-    /// super-mode disagreement without a strict majority.
+    /// Decoded frame periods of the vote and super modes rejected as a whole (each
+    /// also reported as a period fault): a vote failed its checks, no super-mode
+    /// channel verified, or verified channels without a strict majority.
     pub fn rejected(&self) -> u32 {
         self.rejected
     }
@@ -621,6 +634,7 @@ impl HansRx {
         match self.mode {
             Mode::Normal { channel } => {
                 let i = usize::from(channel).saturating_sub(1);
+                // The channel's own fault (already reported) is the period's.
                 if let Some(Some(f)) = verified.get(i) {
                     sink(RxEvent::Frame(*f));
                 }
@@ -638,13 +652,12 @@ impl HansRx {
                 self.voted(Frame::decode(v), sink);
             }
             // Every verified channel holds the reference's frame: it is the majority.
-            Mode::Super if all => {
-                if let Ok(f) = ref_decoded {
-                    sink(RxEvent::Frame(f));
-                }
-            }
+            Mode::Super if all => match ref_decoded {
+                Ok(f) => sink(RxEvent::Frame(f)),
+                Err(_) => self.reject(FaultKind::CheckFailed, sink),
+            },
             Mode::Super => match super_vote(&verified) {
-                SuperOutcome::Nothing => {}
+                SuperOutcome::Nothing => self.reject(FaultKind::CheckFailed, sink),
                 SuperOutcome::Publish { frame, minority } => {
                     for n in 0..CHANNELS {
                         if minority & (1 << n) != 0 {
@@ -656,13 +669,7 @@ impl HansRx {
                     }
                     sink(RxEvent::Frame(frame));
                 }
-                SuperOutcome::Disagree => {
-                    self.rejected = self.rejected.wrapping_add(1);
-                    sink(RxEvent::Fault {
-                        channel: None,
-                        kind: FaultKind::Disagree,
-                    });
-                }
+                SuperOutcome::Disagree => self.reject(FaultKind::Disagree, sink),
             },
         }
         ok
@@ -672,14 +679,19 @@ impl HansRx {
     fn voted(&mut self, decoded: Result<Frame, DecodeError>, sink: &mut impl FnMut(RxEvent)) {
         match decoded {
             Ok(f) => sink(RxEvent::Frame(f)),
-            Err(_) => {
-                self.rejected = self.rejected.wrapping_add(1);
-                sink(RxEvent::Fault {
-                    channel: None,
-                    kind: FaultKind::CheckFailed,
-                });
-            }
+            Err(_) => self.reject(FaultKind::CheckFailed, sink),
         }
+    }
+
+    /// Reports a decoded period that publishes no frame, as a whole (`channel:
+    /// None`), whatever its channels reported: the bridge tells a lost period from
+    /// a channel fault the mode rode through by this event alone.
+    fn reject(&mut self, kind: FaultKind, sink: &mut impl FnMut(RxEvent)) {
+        self.rejected = self.rejected.wrapping_add(1);
+        sink(RxEvent::Fault {
+            channel: None,
+            kind,
+        });
     }
 
     /// Finds the next start edge on every aligned channel and moves the shared
@@ -810,7 +822,7 @@ impl HansRx {
 
     /// Counts a frame period in which the channels of `mask` delivered no pattern.
     ///
-    /// One [`FaultKind::Dropped`] event per channel and period, not one per change:
+    /// One [`FaultKind::Missing`] event per channel and period, not one per change:
     /// the bridge's per-line counters (and the firmware's once-a-second stats line)
     /// then show a dead channel's count growing at the frame rate, as the issue
     /// asks, with no state here to say when to report. The cost is bounded and paid
@@ -830,16 +842,24 @@ impl HansRx {
                 stats.missing = stats.missing.wrapping_add(1);
                 sink(RxEvent::Fault {
                     channel: Some(number(n)),
-                    kind: FaultKind::Dropped,
+                    kind: FaultKind::Missing,
                 });
             }
         }
     }
 
-    /// Gives up the shared timing: every aligned channel reports a resync, the frame
-    /// period at hand (whose samples are all in) counts as missing on every used
-    /// channel, and the hunt starts over from the next word, counting on.
+    /// Gives up the shared timing: in the vote and super modes a period resync (no
+    /// frame until the hunt locks again; in normal mode the channel's resync says
+    /// it), every aligned channel reports a resync, the frame period at hand (whose
+    /// samples are all in) counts as missing on every used channel, and the hunt
+    /// starts over from the next word, counting on.
     fn lose(&mut self, sink: &mut impl FnMut(RxEvent)) {
+        if !matches!(self.mode, Mode::Normal { .. }) {
+            sink(RxEvent::Fault {
+                channel: None,
+                kind: FaultKind::Resync,
+            });
+        }
         self.locked = false;
         self.pending = None;
         self.dry = 0;

@@ -465,3 +465,4 @@ proptest! {
 }
 
 mod dead;
+mod periods;
