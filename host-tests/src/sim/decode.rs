@@ -503,8 +503,8 @@ fn silence(
     }
 }
 
-/// A HANS-100 fault kind in words (`channel`: the fault is one channel's).
-fn hans_fault(kind: FaultKind, channel: bool) -> &'static str {
+/// A HANS-100 fault kind in words.
+fn hans_fault(kind: FaultKind) -> &'static str {
     match kind {
         FaultKind::CheckFailed => "frame check failed",
         FaultKind::Resync => "lost alignment",
@@ -532,8 +532,8 @@ fn hans_record(
             hans::rx::RxEvent::Frame(f) => frame = Some(f),
             hans::rx::RxEvent::Fault { channel, kind } => {
                 let what = match channel {
-                    Some(c) => format!("ch{c}: {}", hans_fault(kind, true)),
-                    None => format!("period: {}", hans_fault(kind, false)),
+                    Some(c) => format!("ch{c}: {}", hans_fault(kind)),
+                    None => format!("period: {}", hans_fault(kind)),
                 };
                 sum.error(&what);
                 // A channel missing from a period is no rejected frame: the frame
