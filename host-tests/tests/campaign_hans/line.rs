@@ -115,7 +115,7 @@ impl Line {
     pub fn partner(&self, k: usize) -> Option<usize> {
         let f = self.frame_bit.partition_point(|&b| b <= k).checked_sub(1)?;
         let o = k - self.frame_bit[f];
-        ((2..FRAME_BITS - 3).contains(&o)).then(|| if o % 2 == 0 { k + 1 } else { k - 1 })
+        ((2..FRAME_BITS - 3).contains(&o)).then(|| if o.is_multiple_of(2) { k + 1 } else { k - 1 })
     }
 }
 
