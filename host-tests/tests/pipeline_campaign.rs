@@ -376,8 +376,9 @@ mod campaign_hans;
 /// input timeout, so the link is lost and must recover).
 ///
 /// Excluded because no frame check can see it: both bits of one complement pair
-/// inverted; wherever the faults changed samples of both bits of a pair (a sample
-/// either side included), the second bit is put back (counted).
+/// inverted; wherever the faults changed samples of both bits of a pair (each
+/// bit's own samples, where the receiver reads it), the second bit is put back
+/// (counted).
 ///
 /// Held back because the receiver does not yet survive them (README "Known
 /// limits"; the `Mix` and `Clock` fields turn them on): noise or flips over the

@@ -232,22 +232,19 @@ fn faulted_channels(
     // where the receiver reads it), the second bit is put back. Only that class is
     // undone: a flipped bit, noise that leaves one bit of a pair alone, and a stuck
     // line (it inverts one bit of each pair) all stay.
-    // Where a receiver samples a bit: among its own samples.
-    let widen = 0;
     for ch in 0..5 {
         let s = skew[ch] as usize;
         let (w, c) = (&mut out[ch], &clean[ch]);
-        let changed = |w: &[u16], (a, b): (usize, usize)| {
-            ((a + s).saturating_sub(widen)..b + s + widen).any(|k| get(w, k) != get(c, k))
-        };
+        let changed =
+            |w: &[u16], (a, b): (usize, usize)| (a + s..b + s).any(|k| get(w, k) != get(c, k));
         for &(a, b) in &spans[ch] {
-            for k in line.bits_in(a.saturating_sub(s + widen), b.saturating_sub(s) + widen) {
+            for k in line.bits_in(a.saturating_sub(s), b.saturating_sub(s)) {
                 let Some(p) = line.partner(k) else { continue };
                 let (first, second) = (k.min(p), k.max(p));
                 if changed(w, line.bit_span(first)) && changed(w, line.bit_span(second)) {
                     inj.pairs_restored += 1;
                     let (ra, rb) = line.bit_span(second);
-                    for j in (ra + s).saturating_sub(widen)..rb + s + widen {
+                    for j in ra + s..rb + s {
                         set(w, j, get(c, j));
                     }
                 }

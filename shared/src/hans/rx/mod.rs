@@ -387,16 +387,20 @@ impl HansRx {
                     // The start edges of this frame move the timing on from the
                     // last one, then the frame is decoded.
                     if let Some((verified, same)) = self.pending.take() {
+                        let pred = self.timing.predicted();
                         self.next(verified, same, sink);
                         // The edge measured may lie up to the search window after
-                        // the prediction `need` was computed from: wait for the
-                        // frame's last samples at the measured start. Decoding now
-                        // would read the ring's stale words from 4 096 words ago
-                        // for the tail, which can pass every check (the tail of an
-                        // old frame: valid pairs and stop bits) with the head of
-                        // this one.
-                        self.need = self.need();
-                        continue;
+                        // the prediction `need` was computed from: then wait for
+                        // the frame's last samples at the measured start. Decoding
+                        // now would read the ring's stale words from 4 096 words
+                        // ago for the tail, which can pass every check (the tail of
+                        // an old frame: valid pairs and stop bits) with the head of
+                        // this one. An edge a sample or more early leaves only the
+                        // rate and delay steps, within `need`'s slack.
+                        if self.locked && diff(self.timing.start, pred) > -(1 << FRAC) {
+                            self.need = self.need();
+                            continue;
+                        }
                     }
                     if self.locked {
                         self.frame(sink);
