@@ -41,6 +41,7 @@ fn line_delta(now: LineCounters, before: LineCounters) -> LineCounters {
         framing: now.framing.saturating_sub(before.framing),
         resyncs: now.resyncs.saturating_sub(before.resyncs),
         dropped: now.dropped.saturating_sub(before.dropped),
+        missing: now.missing.saturating_sub(before.missing),
         disagree: now.disagree.saturating_sub(before.disagree),
     }
 }
@@ -73,12 +74,14 @@ fn print_bridge(s: &BridgeSnapshot, before: &Counters) {
         let f = line_delta(c.line(line), before.line(line));
         if f.total() > 0 {
             defmt::info!(
-                "1 s bridge {}: check failed {}, framing {}, resyncs {}, dropped {}, disagree {}",
+                "1 s bridge {}: check failed {}, framing {}, resyncs {}, dropped {}, missing {}, \
+                 disagree {}",
                 line,
                 f.check_failed,
                 f.framing,
                 f.resyncs,
                 f.dropped,
+                f.missing,
                 f.disagree,
             );
         }

@@ -591,7 +591,7 @@ fn broken_hans_channel_in_each_decode_mode() {
     assert!(!p.gate_on());
     // The dead channel is counted missing every period while the receiver hunts.
     let f = k.line(Line::HansChannel(1));
-    assert!(f.dropped.abs_diff(200) <= 3, "{f:?}");
+    assert!(f.missing.abs_diff(200) <= 3, "{f:?}");
     // Normal mode on another channel: unaffected.
     let (p, _, _) = hans_broken(HansDecode::Normal(1), 3, mid);
     assert!(
@@ -626,7 +626,7 @@ fn broken_hans_channel_in_each_decode_mode() {
             // 10 us frames: 200 periods from mid-run, 400 from power-up less the
             // two of the acquisition (not counted: no line seen yet).
             let dead = if from > 0 { 200 } else { 398 };
-            assert!(f.dropped.abs_diff(dead) <= 3, "{label}: {f:?}");
+            assert!(f.missing.abs_diff(dead) <= 3, "{label}: {f:?}");
             for good in (1..=5u8).filter(|&c| usize::from(c) != ch) {
                 let g = k.line(Line::HansChannel(good));
                 assert_eq!(g, Default::default(), "{label}: CH{good}");
@@ -676,7 +676,7 @@ fn noise_bursts() {
             .chain([Line::Framing]);
         let faults: u64 = all_lines
             .map(|l| k.line(l))
-            .map(|l| l.check_failed + l.framing + l.resyncs + l.disagree + l.dropped)
+            .map(|l| l.check_failed + l.framing + l.resyncs + l.disagree + l.dropped + l.missing)
             .sum();
         let lost = n as u64 - k.frames_ok;
         assert!(lost >= 10, "{label}: the bursts must hit frames: {k:?}");

@@ -445,8 +445,13 @@ pub enum FaultKind {
     Framing,
     /// The receiver lost alignment and found it again.
     Resync,
-    /// Input was discarded without being decoded (overrun, garbage).
+    /// Input was discarded without being decoded (overrun, garbage, a lost DMA
+    /// half, buffers of unequal lengths).
     Dropped,
+    /// A HANS-100 channel delivered no pattern in a frame period (dead, stuck,
+    /// unplugged, not aligned): reported every period it stays so. Nothing was
+    /// received, so nothing was discarded (unlike [`FaultKind::Dropped`]).
+    Missing,
     /// Channels that passed their checks disagreed (HANS-100 super mode), or a vote
     /// had no majority; the frame was rejected.
     Disagree,

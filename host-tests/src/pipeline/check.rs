@@ -166,12 +166,12 @@ pub fn decode_head(config: &Config, out: &HeadOutput) -> Result<HeadView, Pipeli
                         frame: f.to_forward(),
                     }),
                     // Losing alignment on an idle (all-zero) stretch, or the line
-                    // delivering no frame there (`Dropped`: missing), is not a bad
-                    // frame; every other fault is.
+                    // delivering no frame there (`Missing`), is not a bad frame; every
+                    // other fault is.
                     hans::rx::RxEvent::Fault { kind, .. } => {
                         if !matches!(
                             kind,
-                            shared::model::FaultKind::Resync | shared::model::FaultKind::Dropped
+                            shared::model::FaultKind::Resync | shared::model::FaultKind::Missing
                         ) {
                             view.faults += 1;
                         }

@@ -129,10 +129,10 @@ impl HeadStatusIn {
                         seen += 1;
                     }
                     // The head's STATUS line is not a controller channel. A period
-                    // it delivered nothing in (`Dropped`) is not reported: the status
+                    // it delivered nothing in (`Missing`) is not reported: the status
                     // watchdog (`STATUS_LOST`) is what watches for a silent head.
                     hans::rx::RxEvent::Fault {
-                        kind: FaultKind::Dropped,
+                        kind: FaultKind::Missing,
                         ..
                     } => {}
                     hans::rx::RxEvent::Fault { kind, .. } => faults.push(status_fault(kind)),

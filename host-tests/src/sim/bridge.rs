@@ -705,11 +705,12 @@ impl fmt::Display for Report {
         )?;
         writeln!(
             f,
-            "  check failures {}, framing {}, resyncs {}, dropped {}, disagreeing channels {}",
+            "  check failures {}, framing {}, resyncs {}, dropped {}, missing {}, disagreeing channels {}",
             sum(|l| l.check_failed),
             sum(|l| l.framing),
             sum(|l| l.resyncs),
             sum(|l| l.dropped),
+            sum(|l| l.missing),
             sum(|l| l.disagree)
         )?;
         for (line, name) in lines() {
@@ -717,8 +718,8 @@ impl fmt::Display for Report {
             if l.total() > 0 {
                 writeln!(
                     f,
-                    "    {name}: check failures {}, framing {}, resyncs {}, dropped {}, disagree {}",
-                    l.check_failed, l.framing, l.resyncs, l.dropped, l.disagree
+                    "    {name}: check failures {}, framing {}, resyncs {}, dropped {}, missing {}, disagree {}",
+                    l.check_failed, l.framing, l.resyncs, l.dropped, l.missing, l.disagree
                 )?;
             }
         }

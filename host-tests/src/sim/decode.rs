@@ -503,13 +503,13 @@ fn silence(
     }
 }
 
-/// A HANS-100 fault kind in words (`channel`: the fault is one channel's).
-fn hans_fault(kind: FaultKind, channel: bool) -> &'static str {
+/// A HANS-100 fault kind in words.
+fn hans_fault(kind: FaultKind) -> &'static str {
     match kind {
         FaultKind::CheckFailed => "frame check failed",
         FaultKind::Resync => "lost alignment",
         FaultKind::Disagree => "verified channels disagree",
-        FaultKind::Dropped if channel => "missing (no pattern this period)",
+        FaultKind::Missing => "missing (no pattern this period)",
         FaultKind::Dropped => "input dropped",
         FaultKind::Framing => "framing",
     }
@@ -532,13 +532,13 @@ fn hans_record(
             hans::rx::RxEvent::Frame(f) => frame = Some(f),
             hans::rx::RxEvent::Fault { channel, kind } => {
                 let what = match channel {
-                    Some(c) => format!("ch{c}: {}", hans_fault(kind, true)),
-                    None => format!("period: {}", hans_fault(kind, false)),
+                    Some(c) => format!("ch{c}: {}", hans_fault(kind)),
+                    None => format!("period: {}", hans_fault(kind)),
                 };
                 sum.error(&what);
                 // A channel missing from a period is no rejected frame: the frame
                 // came from the other channels, or the gap shows as silence.
-                if !(kind == FaultKind::Resync || channel.is_some() && kind == FaultKind::Dropped) {
+                if !matches!(kind, FaultKind::Resync | FaultKind::Missing) {
                     rejected.push(what);
                 }
             }

@@ -16,10 +16,11 @@ pub struct LineCounters {
     pub framing: u64,
     /// Losses and recoveries of alignment.
     pub resyncs: u64,
-    /// Input discarded undecoded (overrun, garbage); on a HANS-100 channel: frame
-    /// periods the channel delivered no pattern for (dead, stuck, not aligned),
-    /// counted every such period.
+    /// Input discarded undecoded (overrun, garbage, a lost DMA half).
     pub dropped: u64,
+    /// HANS-100 channels: frame periods the channel delivered no pattern for (dead,
+    /// stuck, unplugged, not aligned), counted every such period.
+    pub missing: u64,
     /// Verified channels that disagreed / votes without majority.
     pub disagree: u64,
 }
@@ -31,6 +32,7 @@ impl LineCounters {
             FaultKind::Framing => &mut self.framing,
             FaultKind::Resync => &mut self.resyncs,
             FaultKind::Dropped => &mut self.dropped,
+            FaultKind::Missing => &mut self.missing,
             FaultKind::Disagree => &mut self.disagree,
         };
         *c = c.saturating_add(1);
@@ -42,6 +44,7 @@ impl LineCounters {
             .saturating_add(self.framing)
             .saturating_add(self.resyncs)
             .saturating_add(self.dropped)
+            .saturating_add(self.missing)
             .saturating_add(self.disagree)
     }
 }

@@ -1,15 +1,13 @@
 //! The [`Bridge`]: line events in, head frames and laser outputs out, driven by the
 //! caller's clock (see the [module docs](super) for the state machine).
 
-use super::config::{AfterHold, Config, GateSource, Protocol, Timing};
+use super::config::{AfterHold, Config, GateSource, HansDecode, Protocol, Timing};
 use super::counters::{bump, Counters};
 use super::status::StatusState;
 use super::supervision::{Changes, LinkState, Supervisor};
 use super::translate::{config_position, Translated, Translator};
 use super::validate::ConfigError;
-use crate::model::{
-    Alarms, Axis, Command, FaultKind, ForwardFrame, LaserControl, Line, LineEvent, Position,
-};
+use crate::model::{Alarms, Axis, Command, ForwardFrame, LaserControl, Line, LineEvent, Position};
 use crate::xy3::{self, BackRate};
 
 /// HANS-100 code 3 with power 0 and master oscillator, power amplifier and red
@@ -185,17 +183,8 @@ impl Bridge {
         match event {
             LineEvent::Fault { line, kind } => {
                 self.counters.fault(line, kind);
-                // Head-side lines say nothing about the controller's link. A HANS-100
-                // channel missing from a period (`Dropped`) is reported every period
-                // it stays dead, also when the period's frame was verified on the
-                // other channels: counted only, or one dead redundant channel would
-                // hold the recovery run at zero for good. Its loss of alignment
-                // (`Resync`) still resets the run once.
-                if !matches!(
-                    (line, kind),
-                    (Line::Status | Line::Backchannel, _)
-                        | (Line::HansChannel(_), FaultKind::Dropped)
-                ) {
+                let normal = matches!(self.config.controller.hans.decode, HansDecode::Normal(_));
+                if breaks_run(line, normal) {
                     self.sup.fault();
                 }
                 None
@@ -380,6 +369,30 @@ impl Bridge {
             head_back_rate,
             controller_back_rate: self.rate_changed.take(),
         }
+    }
+}
+
+/// Whether a fault on `line` breaks a recovery run: only a controller-side frame
+/// period the receiver could not publish does.
+///
+/// - XY2-100 / XY3-100 lines (`Axis`, `Framing`): their receivers drop the whole
+///   period on any fault.
+/// - HANS-100 `Framing` (`channel: None`): a decoded period that publishes no frame
+///   (vote failed, no super channel verified, no majority), the shared timing
+///   lost, input discarded.
+/// - HANS-100 channel faults (`HansChannel`: check failed, resync, minority,
+///   missing) in the vote and super modes are counted only: there the receiver
+///   ends every decoded period in a frame or a period fault, so a channel fault
+///   says nothing about the period. A noisy or dead backup channel faulting every
+///   period would otherwise hold the run at zero and the link in hold / safe while
+///   verified frames flow. In normal mode (`channel_is_period`) the one channel's
+///   faults are the period's (its check failure is the lost period).
+/// - Head-side lines (`Status`, `Backchannel`) say nothing about the controller.
+fn breaks_run(line: Line, channel_is_period: bool) -> bool {
+    match line {
+        Line::Axis(_) | Line::Framing => true,
+        Line::HansChannel(_) => channel_is_period,
+        Line::Status | Line::Backchannel => false,
     }
 }
 

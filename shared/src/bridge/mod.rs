@@ -37,10 +37,16 @@
 //! # Supervision state machine
 //! `T` = `failsafe.input_timeout_us` (default 1 ms), `H` = `failsafe.hold_us`,
 //! `N` = `failsafe.recovery_frames`. A *valid frame* is `LineEvent::Frame`; a
-//! *fault* is `LineEvent::Fault` on a controller-side line (faults on `Status` /
-//! `Backchannel` are head-side, and `Dropped` on a HANS-100 channel is a channel
-//! missing from a period the others may still deliver: counted only). Time is
-//! applied before each event.
+//! *fault* is a `LineEvent::Fault` that stands for a frame period the receiver
+//! could not publish: any fault on an XY2-100 / XY3-100 line (`Axis`, `Framing`),
+//! and on a HANS-100 controller the period faults on `Framing` (in the vote and
+//! super modes the receiver ends every decoded period in a frame or one such
+//! fault, and reports a lost timing there). Faults on a `HansChannel` (check failed,
+//! resync, minority, missing) are counted only in the vote and super modes (in
+//! normal mode the one channel's faults are the period's), as are the head-side
+//! `Status` / `Backchannel`: a noisy or dead backup channel must not hold the
+//! recovery run at zero while the decode mode still publishes verified frames.
+//! Time is applied before each event.
 //!
 //! | state | event | action / next state |
 //! |---|---|---|

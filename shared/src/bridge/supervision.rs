@@ -178,7 +178,8 @@ impl Supervisor {
         }
     }
 
-    /// A fault on a controller-side line: breaks a recovery run (running is not
+    /// A controller-side frame period the receiver could not publish (the engine
+    /// decides which faults are that): breaks a recovery run (running is not
     /// affected; only the absence of valid frames for the timeout ends it).
     pub fn fault(&mut self) {
         self.run = 0;

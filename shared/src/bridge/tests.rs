@@ -452,49 +452,125 @@ fn recovery_needs_n_consecutive_valid_frames() {
     assert_eq!(b.counters().line(Line::Status).framing, 5);
 }
 
-/// A dead redundant HANS-100 channel reports `Dropped` every period while the others
-/// deliver: every one is counted on its channel, and the link still recovers; its
-/// loss of alignment (`Resync`) breaks the run like any controller-side fault.
-#[test]
-fn a_missing_hans_channel_is_counted_without_blocking_recovery() {
+fn hans_fault(line: Line, kind: FaultKind) -> LineEvent {
+    LineEvent::Fault { line, kind }
+}
+
+/// A HANS-100 controller in `decode`, running, then holding after an input loss.
+fn hans_holding(decode: HansDecode) -> (Bridge, u64) {
     let mut cfg = Config::default();
+    cfg.controller.protocol = Protocol::Hans;
+    cfg.controller.hans.decode = decode;
     cfg.failsafe.recovery_frames = 10;
     let (mut b, t0) = running(&cfg);
-    let mut t = t0 + 2 * MS;
+    let t = t0 + 2 * MS;
     assert_eq!(b.tick(t).state, LinkState::Holding);
-    let missing = |c| LineEvent::Fault {
-        line: Line::HansChannel(c),
-        kind: FaultKind::Dropped,
-    };
-    for i in 0..10 {
-        t += FP;
-        b.on_line_event(t, missing(2));
-        b.on_line_event(t, missing(5));
-        if i == 4 {
-            b.on_line_event(
-                t,
-                LineEvent::Fault {
-                    line: Line::HansChannel(2),
-                    kind: FaultKind::Resync,
-                },
+    (b, t)
+}
+
+/// Vote and super modes: backup channels that fault every period, in every way a
+/// channel can (missing, check failed, minority, resync), while the mode publishes
+/// a verified frame each period: every fault is counted on its channel, and the
+/// link recovers after exactly `N` frames, as with clean channels.
+#[test]
+fn noisy_backup_hans_channels_do_not_block_recovery() {
+    let kinds = [
+        FaultKind::Missing,
+        FaultKind::CheckFailed,
+        FaultKind::Disagree,
+        FaultKind::Resync,
+    ];
+    for decode in [
+        HansDecode::Vote3([1, 2, 3]),
+        HansDecode::Vote5,
+        HansDecode::Super,
+    ] {
+        let (mut b, mut t) = hans_holding(decode);
+        for i in 0..10 {
+            t += FP;
+            assert_eq!(b.state(), LinkState::Holding, "{decode:?} period {i}");
+            for (c, kind) in [(2, kinds[i % 4]), (3, kinds[(i + 1) % 4])] {
+                b.on_line_event(t, hans_fault(Line::HansChannel(c), kind));
+            }
+            b.on_line_event(t, ev(xyz16(7, 7, 7)));
+        }
+        assert_eq!(b.state(), LinkState::Running, "{decode:?}");
+        let c = b.counters();
+        assert_eq!(c.recoveries, 2, "{decode:?}");
+        for ch in [2, 3] {
+            let l = c.line(Line::HansChannel(ch));
+            assert_eq!(l.total(), 10, "{decode:?} CH{ch}: {l:?}");
+            assert_eq!(
+                [l.missing, l.check_failed, l.disagree, l.resyncs].map(|n| n >= 2),
+                [true; 4],
+                "{decode:?} CH{ch}: {l:?}"
             );
         }
-        b.on_line_event(t, ev(xyz16(7, 7, 7)));
+        assert_eq!(c.line(Line::Framing), LineCounters::default());
     }
-    // The resync in period 4 broke the run: 5 valid frames since.
-    assert_eq!(b.state(), LinkState::Holding);
-    for _ in 0..5 {
-        t += FP;
-        b.on_line_event(t, missing(2));
-        b.on_line_event(t, ev(xyz16(7, 7, 7)));
+}
+
+/// Vote and super modes: a period the receiver could not publish (vote failed, no
+/// channel verified, no majority, timing lost, input dropped) breaks the run, so a
+/// link whose every channel is noisy does not recover on scattered verified frames.
+#[test]
+fn lost_hans_periods_break_the_recovery_run() {
+    let lost = [
+        FaultKind::CheckFailed,
+        FaultKind::Disagree,
+        FaultKind::Resync,
+        FaultKind::Dropped,
+    ];
+    for decode in [
+        HansDecode::Vote3([1, 2, 3]),
+        HansDecode::Vote5,
+        HansDecode::Super,
+    ] {
+        for kind in lost {
+            let (mut b, mut t) = hans_holding(decode);
+            // Nine good periods, then one lost one every ninth: never ten in a row.
+            for i in 0..50 {
+                t += FP;
+                if i % 10 == 9 {
+                    b.on_line_event(t, hans_fault(Line::HansChannel(1), FaultKind::CheckFailed));
+                    b.on_line_event(t, hans_fault(Line::Framing, kind));
+                } else {
+                    b.on_line_event(t, ev(xyz16(7, 7, 7)));
+                }
+                assert_eq!(b.state(), LinkState::Holding, "{decode:?} {kind:?} {i}");
+            }
+            // 9 of the start-up's run, then every frame here.
+            assert_eq!(b.counters().not_forwarded, 9 + 45);
+            // Ten clean periods recover it.
+            for _ in 0..10 {
+                t += FP;
+                b.on_line_event(t, ev(xyz16(8, 8, 8)));
+            }
+            assert_eq!(b.state(), LinkState::Running, "{decode:?} {kind:?}");
+        }
     }
-    assert_eq!(b.state(), LinkState::Running);
-    let c = b.counters();
-    assert_eq!(c.line(Line::HansChannel(2)).dropped, 15);
-    assert_eq!(c.line(Line::HansChannel(2)).resyncs, 1);
-    assert_eq!(c.line(Line::HansChannel(5)).dropped, 10);
-    assert_eq!(c.line(Line::HansChannel(1)), Default::default());
-    assert_eq!(c.line(Line::Framing), Default::default());
+}
+
+/// Normal mode: the one channel's faults are the period's; each breaks the run.
+#[test]
+fn normal_mode_channel_faults_break_the_recovery_run() {
+    for kind in [
+        FaultKind::CheckFailed,
+        FaultKind::Resync,
+        FaultKind::Missing,
+    ] {
+        let (mut b, mut t) = hans_holding(HansDecode::Normal(4));
+        for i in 0..50 {
+            t += FP;
+            if i % 10 == 9 {
+                b.on_line_event(t, hans_fault(Line::HansChannel(4), kind));
+            } else {
+                b.on_line_event(t, ev(xyz16(7, 7, 7)));
+            }
+            assert_eq!(b.state(), LinkState::Holding, "{kind:?} {i}");
+        }
+        assert_eq!(b.counters().line(Line::HansChannel(4)).total(), 5);
+    }
 }
 
 #[test]

@@ -65,7 +65,7 @@
 //! bridge's [`LineEvent`]. Per-channel [`ChannelStats`] count frames that passed,
 //! frames that failed a check, losses of alignment and **missing** periods: every
 //! frame period in which a used channel delivered no pattern (not aligned: dead,
-//! stuck, unplugged) counts one and reports [`FaultKind::Dropped`] on that channel,
+//! stuck, unplugged) counts one and reports [`FaultKind::Missing`] on that channel,
 //! **every period it stays so**, also while the frame comes from the other channels
 //! (vote and super modes) and, while the timing is lost again (normal mode on a
 //! dead channel, or every channel dead), once per nominal frame period of input
@@ -73,12 +73,19 @@
 //! dead redundant channel is visible in its counters at the frame rate, never just
 //! once; a channel that comes back aligns at the next start edge and counts frames
 //! again. In every locked period each used channel counts exactly one of frames
-//! ok, check failures, missing. No frame that failed a check is ever published,
+//! ok, check failures, missing. **In the vote and super modes every decoded
+//! period ends in exactly one frame or one period fault** (`channel: None`;
+//! CheckFailed or Disagree, whatever the channels reported before it), and losing
+//! the shared timing reports a period [`FaultKind::Resync`]: there a channel fault
+//! alone never means a lost period, and the bridge breaks its recovery run on
+//! period faults only (a noisy backup channel must not keep the link in its
+//! fail-safe states while verified frames flow). In normal mode the one channel's
+//! faults are the period's. No frame that failed a check is ever published,
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 1 950 instructions per frame for one channel at 3x (2 100 at 4x), 3 250
-//! for vote3 and 4 250 for vote5 / super (5 channels, 3x), against 4 400 / 5 200 /
+//! About 2 030 instructions per frame for one channel at 3x (2 170 at 4x), 3 350
+//! for vote3 and 4 380 for vote5 / super (5 channels, 3x), against 4 400 / 5 200 /
 //! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame that is
 //! roughly: gathering the reference ~1 000 (about 65 per 32-sample window), its
 //! decode 150, copying the rings ~3 per word and channel, and per other channel
@@ -192,9 +199,14 @@ pub enum RxEvent {
     /// A frame that passed every check of its mode.
     Frame(Frame),
     /// A fault. `channel` is 1..=5 for a channel's own fault (a check failure, a
-    /// resync, a super-mode minority, or [`FaultKind::Dropped`]: the channel
-    /// delivered no pattern this period), `None` for the frame period as a whole (a
-    /// vote that failed its checks, a super-mode disagreement, input dropped).
+    /// resync, a super-mode minority, or [`FaultKind::Missing`]: the channel
+    /// delivered no pattern this period), `None` for the frame period as a whole:
+    /// in the vote and super modes a decoded period that publishes no frame
+    /// ([`FaultKind::CheckFailed`]: the vote failed, or no super-mode channel
+    /// verified; [`FaultKind::Disagree`]: no strict super-mode majority) or the
+    /// shared timing lost ([`FaultKind::Resync`]); in any mode input discarded
+    /// ([`FaultKind::Dropped`]). In normal mode the channel's faults are the
+    /// period's.
     Fault {
         /// The channel, or `None` for the period.
         channel: Option<u8>,
@@ -333,8 +345,9 @@ impl HansRx {
             .copied()
     }
 
-    /// Frame periods rejected as a whole: a vote that failed its checks, or a
-    /// super-mode disagreement without a strict majority.
+    /// Decoded frame periods of the vote and super modes rejected as a whole (each
+    /// also reported as a period fault): a vote failed its checks, no super-mode
+    /// channel verified, or verified channels without a strict majority.
     pub fn rejected(&self) -> u32 {
         self.rejected
     }
@@ -386,7 +399,20 @@ impl HansRx {
                     // last one, then the frame is decoded.
                     let mut sink = |e| sink(at, e);
                     if let Some((verified, same)) = self.pending.take() {
+                        let pred = self.timing.predicted();
                         self.next(verified, same, &mut sink);
+                        // The edge measured may lie up to the search window after
+                        // the prediction `need` was computed from: then wait for
+                        // the frame's last samples at the measured start. Decoding
+                        // now would read the ring's stale words from 4 096 words
+                        // ago for the tail, which can pass every check (the tail of
+                        // an old frame: valid pairs and stop bits) with the head of
+                        // this one. An edge a sample or more early leaves only the
+                        // rate and delay steps, within `need`'s slack.
+                        if self.locked && diff(self.timing.start, pred) > -(1 << FRAC) {
+                            self.need = self.need();
+                            continue;
+                        }
                     }
                     if self.locked {
                         self.frame(&mut sink);
@@ -633,6 +659,7 @@ impl HansRx {
         match self.mode {
             Mode::Normal { channel } => {
                 let i = usize::from(channel).saturating_sub(1);
+                // The channel's own fault (already reported) is the period's.
                 if let Some(Some(f)) = verified.get(i) {
                     sink(RxEvent::Frame(*f));
                 }
@@ -650,13 +677,12 @@ impl HansRx {
                 self.voted(Frame::decode(v), sink);
             }
             // Every verified channel holds the reference's frame: it is the majority.
-            Mode::Super if all => {
-                if let Ok(f) = ref_decoded {
-                    sink(RxEvent::Frame(f));
-                }
-            }
+            Mode::Super if all => match ref_decoded {
+                Ok(f) => sink(RxEvent::Frame(f)),
+                Err(_) => self.reject(FaultKind::CheckFailed, sink),
+            },
             Mode::Super => match super_vote(&verified) {
-                SuperOutcome::Nothing => {}
+                SuperOutcome::Nothing => self.reject(FaultKind::CheckFailed, sink),
                 SuperOutcome::Publish { frame, minority } => {
                     for n in 0..CHANNELS {
                         if minority & (1 << n) != 0 {
@@ -668,13 +694,7 @@ impl HansRx {
                     }
                     sink(RxEvent::Frame(frame));
                 }
-                SuperOutcome::Disagree => {
-                    self.rejected = self.rejected.wrapping_add(1);
-                    sink(RxEvent::Fault {
-                        channel: None,
-                        kind: FaultKind::Disagree,
-                    });
-                }
+                SuperOutcome::Disagree => self.reject(FaultKind::Disagree, sink),
             },
         }
         ok
@@ -684,14 +704,19 @@ impl HansRx {
     fn voted(&mut self, decoded: Result<Frame, DecodeError>, sink: &mut impl FnMut(RxEvent)) {
         match decoded {
             Ok(f) => sink(RxEvent::Frame(f)),
-            Err(_) => {
-                self.rejected = self.rejected.wrapping_add(1);
-                sink(RxEvent::Fault {
-                    channel: None,
-                    kind: FaultKind::CheckFailed,
-                });
-            }
+            Err(_) => self.reject(FaultKind::CheckFailed, sink),
         }
+    }
+
+    /// Reports a decoded period that publishes no frame, as a whole (`channel:
+    /// None`), whatever its channels reported: the bridge tells a lost period from
+    /// a channel fault the mode rode through by this event alone.
+    fn reject(&mut self, kind: FaultKind, sink: &mut impl FnMut(RxEvent)) {
+        self.rejected = self.rejected.wrapping_add(1);
+        sink(RxEvent::Fault {
+            channel: None,
+            kind,
+        });
     }
 
     /// Finds the next start edge on every aligned channel and moves the shared
@@ -822,7 +847,7 @@ impl HansRx {
 
     /// Counts a frame period in which the channels of `mask` delivered no pattern.
     ///
-    /// One [`FaultKind::Dropped`] event per channel and period, not one per change:
+    /// One [`FaultKind::Missing`] event per channel and period, not one per change:
     /// the bridge's per-line counters (and the firmware's once-a-second stats line)
     /// then show a dead channel's count growing at the frame rate, as the issue
     /// asks, with no state here to say when to report. The cost is bounded and paid
@@ -842,16 +867,24 @@ impl HansRx {
                 stats.missing = stats.missing.wrapping_add(1);
                 sink(RxEvent::Fault {
                     channel: Some(number(n)),
-                    kind: FaultKind::Dropped,
+                    kind: FaultKind::Missing,
                 });
             }
         }
     }
 
-    /// Gives up the shared timing: every aligned channel reports a resync, the frame
-    /// period at hand (whose samples are all in) counts as missing on every used
-    /// channel, and the hunt starts over from the next word, counting on.
+    /// Gives up the shared timing: in the vote and super modes a period resync (no
+    /// frame until the hunt locks again; in normal mode the channel's resync says
+    /// it), every aligned channel reports a resync, the frame period at hand (whose
+    /// samples are all in) counts as missing on every used channel, and the hunt
+    /// starts over from the next word, counting on.
     fn lose(&mut self, sink: &mut impl FnMut(RxEvent)) {
+        if !matches!(self.mode, Mode::Normal { .. }) {
+            sink(RxEvent::Fault {
+                channel: None,
+                kind: FaultKind::Resync,
+            });
+        }
         self.locked = false;
         self.pending = None;
         self.dry = 0;

@@ -505,3 +505,4 @@ proptest! {
 }
 
 mod dead;
+mod periods;

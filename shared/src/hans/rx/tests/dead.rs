@@ -41,7 +41,7 @@ fn streams(how: Broken, channel: usize) -> Vec<Vec<u16>> {
 struct Trace {
     published: Vec<usize>,
     stats: Vec<[ChannelStats; 5]>,
-    /// Dropped events per channel over the whole run.
+    /// Missing events per channel over the whole run.
     dropped: [u32; 5],
 }
 
@@ -59,7 +59,7 @@ fn trace(mode: Mode, words: &[Vec<u16>]) -> Trace {
         rx.push(&parts, &mut |e| {
             if let LineEvent::Fault {
                 line: crate::model::Line::HansChannel(c),
-                kind: FaultKind::Dropped,
+                kind: FaultKind::Missing,
             } = e.to_line_event()
             {
                 t.dropped[usize::from(c) - 1] += 1;
