@@ -26,12 +26,12 @@ pub const WORKLOADS: &[Workload] = &[
     Workload {
         name: "hans rx: normal, 1 ch, 3x (37.5 MHz)",
         frames: MEASURED as u32,
-        run: |w| rx(w, 37_500_000, Mode::Normal { channel: 1 }),
+        run: |w| rx(w, 37_500_000, Mode::Normal { channel: 1 }, WHOLE),
     },
     Workload {
         name: "hans rx: normal, 1 ch, 4x (50 MHz)",
         frames: MEASURED as u32,
-        run: |w| rx(w, 50_000_000, Mode::Normal { channel: 1 }),
+        run: |w| rx(w, 50_000_000, Mode::Normal { channel: 1 }, WHOLE),
     },
     Workload {
         name: "hans rx: vote3, 3x",
@@ -43,28 +43,29 @@ pub const WORKLOADS: &[Workload] = &[
                 Mode::Vote3 {
                     channels: [1, 3, 5],
                 },
+                WHOLE,
             )
         },
     },
     Workload {
         name: "hans rx: vote5, 3x",
         frames: MEASURED as u32,
-        run: |w| rx(w, 37_500_000, Mode::Vote5),
+        run: |w| rx(w, 37_500_000, Mode::Vote5, WHOLE),
     },
     Workload {
         name: "hans rx: super, 5 ch, 3x",
         frames: MEASURED as u32,
-        run: |w| rx(w, 37_500_000, Mode::Super),
+        run: |w| rx(w, 37_500_000, Mode::Super, WHOLE),
     },
     Workload {
         name: "hans rx: firmware, normal, 40 MHz, 64-word chunks",
         frames: MEASURED as u32,
-        run: |w| rx_chunked(w, Mode::Normal { channel: 1 }),
+        run: |w| rx(w, FW_FS_HZ, Mode::Normal { channel: 1 }, FW_CHUNK),
     },
     Workload {
         name: "hans rx: firmware, super, 40 MHz, 64-word chunks",
         frames: MEASURED as u32,
-        run: |w| rx_chunked(w, Mode::Super),
+        run: |w| rx(w, FW_FS_HZ, Mode::Super, FW_CHUNK),
     },
     Workload {
         name: "hans tx: slot update",
@@ -125,33 +126,11 @@ fn capture(fs_hz: u32) -> Capture {
     cap
 }
 
-/// Decodes the warm-up outside the window, then the measured frames inside it.
-fn rx(w: &mut Window, fs_hz: u32, mode: Mode) -> u32 {
+/// Decodes the warm-up outside the window, then the measured frames inside it,
+/// pushed `chunk` words at a time (`WHOLE`: in one push).
+fn rx(w: &mut Window, fs_hz: u32, mode: Mode, chunk: usize) -> u32 {
     let cap = black_box(capture(fs_hz));
     let Ok(mut rx) = HansRx::new(fs_hz, mode) else {
-        return 0;
-    };
-    let mut sum = 0u32;
-    let mut sink = |e: RxEvent| {
-        if let RxEvent::Frame(f) = e {
-            sum = sum.wrapping_add(f.data1() ^ f.data3()).wrapping_add(1);
-        }
-    };
-    let chunks = |from: usize, to: usize| cap.words.each_ref().map(|c| &c[from..to]);
-    rx.push(&chunks(0, cap.warm), &mut sink);
-    let part = chunks(cap.warm, cap.len);
-    w.measure(|| rx.push(&part, &mut sink));
-    sum
-}
-
-/// The firmware's HANS-100 controller decoder (`tasks/hans_in.rs`): fs = 40 MHz
-/// (TIM3, 3.2 samples per bit) and the words pushed 64 at a time, the chunk
-/// `hans_decode` feeds so that each chunk's events reach the bridge at once.
-fn rx_chunked(w: &mut Window, mode: Mode) -> u32 {
-    const FS_HZ: u32 = 40_000_000;
-    const CHUNK: usize = 64;
-    let cap = black_box(capture(FS_HZ));
-    let Ok(mut rx) = HansRx::new(FS_HZ, mode) else {
         return 0;
     };
     let mut sum = 0u32;
@@ -165,13 +144,22 @@ fn rx_chunked(w: &mut Window, mode: Mode) -> u32 {
     w.measure(|| {
         let mut at = cap.warm;
         while at < cap.len {
-            let to = (at + CHUNK).min(cap.len);
+            let to = at.saturating_add(chunk).min(cap.len);
             rx.push(&chunks(at, to), &mut sink);
             at = to;
         }
     });
     sum
 }
+
+/// All measured words in one push.
+const WHOLE: usize = usize::MAX;
+/// The firmware's HANS-100 controller decoder (`tasks/hans_in.rs`): fs = 40 MHz
+/// (TIM3, 3.2 samples per bit) and the words pushed 64 at a time, the chunk
+/// `hans_decode` feeds so that each chunk's events reach the bridge at once.
+const FW_FS_HZ: u32 = 40_000_000;
+/// See [`FW_FS_HZ`].
+const FW_CHUNK: usize = 64;
 
 /// One `Transmitter::update` per frame (slot write two ahead of the DMA).
 fn tx(w: &mut Window) -> u32 {
