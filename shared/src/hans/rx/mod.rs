@@ -97,8 +97,9 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 2 030 instructions per frame for one channel at 3x (2 170 at 4x), 3 350
-//! for vote3 and 4 380 for vote5 / super (5 channels, 3x), against 4 400 / 5 200 /
+//! About 2 170 instructions per frame for one channel at 3x (2 310 at 4x), 3 480
+//! for vote3 and 4 500 for vote5 / super (5 channels, 3x; the timing confirmation
+//! costs about 110-140 of it), against 4 400 / 5 200 /
 //! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame that is
 //! roughly: gathering the reference ~1 000 (about 65 per 32-sample window), its
 //! decode 150, copying the rings ~3 per word and channel, and per other channel
