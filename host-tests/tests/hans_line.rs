@@ -189,8 +189,10 @@ const MODES: [Mode; 4] = [
 ];
 
 /// Frames that may be lost during acquisition: hunt (1-2 frames), rate measurement
-/// (1 frame), the first fits, and one relock after a false lock (3 failures).
-const LOCK_FRAMES: usize = 10;
+/// (1 frame), the young lock's periods that publish nothing (6, see
+/// `shared::hans::rx::timing::SETTLED`), and one relock after a false lock (3
+/// failures).
+const LOCK_FRAMES: usize = 16;
 
 #[test]
 fn every_mode_recovers_every_intact_frame() {
@@ -344,7 +346,9 @@ fn limits_rate_offset_and_jitter() {
         for (i, j) in jitters.into_iter().enumerate() {
             let (l, wrong) = loss(fs, 0.0, j, N, 200 + i as u64);
             print!("{l:>7.1}{}", if wrong > 0 { '!' } else { ' ' });
-            if j <= 0.25 {
+            // The receiver confirms each frame's start edges within 3/8 of a bit
+            // (`shared::hans::rx`): beyond +-20 % jitter a few good frames fail it.
+            if j <= 0.2 {
                 assert_eq!(
                     (l, wrong),
                     (0.0, 0),

@@ -29,8 +29,9 @@ use shared::xy3::FrameSize;
 const FS_HZ: u32 = 37_500_000;
 /// Samples per frame at 3x (125 bits).
 const FRAME_SAMPLES: usize = 375;
-/// Frames decoded before the window (acquisition, bridge recovery).
-const WARM_FRAMES: usize = 6;
+/// Frames decoded before the window (acquisition, including the receiver's young
+/// lock that publishes nothing, and bridge recovery).
+const WARM_FRAMES: usize = 14;
 /// Frame periods inside the window.
 const MEASURED: usize = 32;
 /// Words per channel for every frame plus one spare frame.

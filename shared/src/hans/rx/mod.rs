@@ -16,8 +16,13 @@
 //!    (±5 %) apart sets the timing: start edge and bit rate, measured over a whole
 //!    frame before any bit is trusted.
 //! 2. **Frames**: the words are copied into per-channel rings ([`ring`]); once a
-//!    frame's last bit has arrived on every channel, it is decoded in one go (and
-//!    published right away). The **reference** channel's 125 bit centres are gathered window by window
+//!    frame's samples up to its successor's start edge have arrived on every
+//!    channel, it is decoded in one go and published right away if its timing is
+//!    **confirmed**: the channel's start edge and the next frame's lie within 3/8
+//!    of a bit of where the bit timing the pattern was read with puts them. Else the
+//!    phase may have drifted within the frame (a false or missing start edge moved
+//!    the tracking), and a tail read a bit off is random content whose complement
+//!    pairs pass at 2^-n: the channel counts a check failure instead. The **reference** channel's 125 bit centres are gathered window by window
 //!    (32 samples) with a per-phase table and four multiplications ([`table`]);
 //!    every other aligned channel is checked **centre for centre** against the
 //!    reference's samples, shifted by the whole samples between their delays. A
@@ -30,7 +35,13 @@
 //!    upper median of the edges of the channels that just verified (a glitch before
 //!    the real edge reads early) corrects phase and rate with an alpha-beta filter;
 //!    each channel's delay follows its own deviation from that consensus (averaged,
-//!    steps clamped to a sample). A channel that matched the reference and whose
+//!    steps clamped to a sample). A lock publishes nothing until it has measured
+//!    [`timing::SETTLED`] start edges (its first gains are large: a rate measured
+//!    over one jittered frame, or one false edge, can leave the phase half a bit
+//!    off at a frame's end, which no check sees); from then on an edge half a bit
+//!    or more from the prediction is not followed (the timing coasts; if it was
+//!    right after all, the frames fail their confirmation and the channel realigns
+//!    or the lock is lost). A channel that matched the reference and whose
 //!    delay has settled is re-measured only every eighth frame. A channel without
 //!    an edge, or failing three patterns in a row, drops its alignment and aligns
 //!    again at the next frame's start edge; when no channel is left, or none
@@ -74,7 +85,9 @@
 //! once; a channel that comes back aligns at the next start edge and counts frames
 //! again. In every locked period each used channel counts exactly one of frames
 //! ok, check failures, missing. **In the vote and super modes every decoded
-//! period ends in exactly one frame or one period fault** (`channel: None`;
+//! period ends in exactly one frame or one period fault**, except the first
+//! `SETTLED - 2` of a lock (acquisition: frames verified, none published, nothing
+//! reported) (`channel: None`;
 //! CheckFailed or Disagree, whatever the channels reported before it), and losing
 //! the shared timing reports a period [`FaultKind::Resync`]: there a channel fault
 //! alone never means a lost period, and the bridge breaks its recovery run on
@@ -84,8 +97,9 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 2 030 instructions per frame for one channel at 3x (2 170 at 4x), 3 350
-//! for vote3 and 4 380 for vote5 / super (5 channels, 3x), against 4 400 / 5 200 /
+//! About 2 170 instructions per frame for one channel at 3x (2 310 at 4x), 3 480
+//! for vote3 and 4 500 for vote5 / super (5 channels, 3x; the timing confirmation
+//! costs about 110-140 of it), against 4 400 / 5 200 /
 //! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame that is
 //! roughly: gathering the reference ~1 000 (about 65 per 32-sample window), its
 //! decode 150, copying the rings ~3 per word and channel, and per other channel
@@ -457,8 +471,8 @@ impl HansRx {
     }
 
     /// The stream word (modulo 4 096) before which every sample the next frame
-    /// needs has arrived: its last bit centre on the latest channel, so a frame is
-    /// published as soon as its last bit is in.
+    /// needs has arrived: up to its successor's start edge on the latest channel,
+    /// which confirms the frame's timing before it is published.
     fn need(&self) -> u32 {
         let t = &self.timing;
         let mut late = 0;
@@ -475,9 +489,11 @@ impl HansRx {
         } else {
             t.start
         };
+        // The last sample is the latest one that confirms the next start edge
+        // ([`HansRx::confirmed`]), 3/8 of a bit after where the timing puts it.
         let last = start
-            .wrapping_add((t.ratio as u32).wrapping_mul(FRAME_BITS as u32 - 1))
-            .wrapping_add((t.ratio / 2) as u32)
+            .wrapping_add((t.ratio as u32).wrapping_mul(FRAME_BITS as u32))
+            .wrapping_add(confirm_window(t.ratio))
             .wrapping_add(HALF);
         // Two samples of slack: a table-gathered centre (or a shifted compare) may
         // fall one sample after the exact position.
@@ -591,8 +607,53 @@ impl HansRx {
                 )
             });
         }
-        let verified = self.evaluate(&patterns, aligned, same, ref_pattern, sink);
+        // The channels that matched the reference hold one pattern, read right if
+        // any of them confirms the timing at its own delay (the reference first; a
+        // noisy edge on one of them costs nothing); the others are confirmed on
+        // their own.
+        let mut confirmed = 0u8;
+        if self.confirmed(reference, start, ref_delay, ratio)
+            || bits(same & !(1 << reference)).any(|n| self.confirmed(n, start, delay(n), ratio))
+        {
+            confirmed = same;
+        }
+        for n in bits(aligned & !same) {
+            if self.confirmed(n, start, delay(n), ratio) {
+                confirmed |= 1 << n;
+            }
+        }
+        // A young lock decodes and tracks, but publishes nothing yet (acquisition,
+        // see `timing::SETTLED`); faults are reported as ever.
+        let settled = self.timing.settled();
+        let mut gated = |e: RxEvent| {
+            if settled || !matches!(e, RxEvent::Frame(_)) {
+                sink(e);
+            }
+        };
+        let verified = self.evaluate(&patterns, aligned, same, confirmed, ref_pattern, &mut gated);
         self.pending = Some((verified, same));
+    }
+
+    /// True when channel `n`'s start edges of this frame (at `start` plus its
+    /// `delay`) and of the next one (a frame later by the bit timing the pattern
+    /// was read with) both lie within [`confirm_window`] of where that timing puts
+    /// them. Only then were the frame's bits read at their centres from the first
+    /// to the last: a false or missing start edge that moved the tracking leaves
+    /// the phase drifting within the frame, and a tail read a bit off is random
+    /// content whose complement pairs pass at 2^-n (README "Known limits"). The
+    /// start edge follows the stop field and the next falling edge comes two bits
+    /// later, so no other edge of a good line lies in either window.
+    fn confirmed(&self, n: usize, start: u32, delay: i32, ratio: i32) -> bool {
+        let Some(ring) = self.rings.get(n) else {
+            return false;
+        };
+        let w = confirm_window(ratio);
+        let head = start.wrapping_add(delay as u32);
+        let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
+        [head, next].into_iter().all(|at| {
+            ring.first_fall(at.wrapping_sub(w), at.wrapping_add(w).wrapping_add(HALF))
+                .is_some()
+        })
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that
@@ -602,6 +663,7 @@ impl HansRx {
         patterns: &[Option<u128>; CHANNELS],
         present: u8,
         same: u8,
+        confirmed: u8,
         ref_pattern: u128,
         sink: &mut impl FnMut(RxEvent),
     ) -> u8 {
@@ -616,13 +678,15 @@ impl HansRx {
             ) else {
                 continue;
             };
-            let decoded = if same & (1 << n) != 0 {
-                ref_decoded
+            let decoded = if confirmed & (1 << n) == 0 {
+                None
+            } else if same & (1 << n) != 0 {
+                ref_decoded.ok()
             } else {
-                Frame::decode(*p)
+                Frame::decode(*p).ok()
             };
             match decoded {
-                Ok(f) => {
+                Some(f) => {
                     stats.frames_ok = stats.frames_ok.wrapping_add(1);
                     ch.failures = 0;
                     ok |= 1 << n;
@@ -630,7 +694,7 @@ impl HansRx {
                         *v = Some(f);
                     }
                 }
-                Err(_) => {
+                None => {
                     stats.check_failures = stats.check_failures.wrapping_add(1);
                     sink(RxEvent::Fault {
                         channel: Some(number(n)),
@@ -649,10 +713,12 @@ impl HansRx {
                 }
             }
         }
-        let all = same == self.used;
+        // An unconfirmed channel counts as failed: it votes zeros, as a dead line.
+        let all = same & confirmed == self.used;
         let get = |c: u8| {
             usize::from(c)
                 .checked_sub(1)
+                .filter(|&i| confirmed & (1 << i) != 0)
                 .and_then(|i| patterns.get(i).copied().flatten())
                 .unwrap_or(0)
         };
@@ -901,6 +967,17 @@ impl HansRx {
         }
         self.missing(self.used, sink);
     }
+}
+
+/// Half-width (Q16 samples) of the windows in which [`HansRx::confirmed`] wants a
+/// frame's start edge and its successor's: 3/8 of a bit. A good line's edge lies
+/// within its jitter plus half a sample (1/6 bit at 3x) of a settled prediction,
+/// so up to about +-20 % jitter costs nothing. Half a bit let one wrong frame in
+/// 250 000 through in the HANS campaign (normal mode, +-15 % jitter, edge faults):
+/// the phase error a check can see must stay well inside the half bit at which a
+/// centre reads its neighbour.
+fn confirm_window(ratio: i32) -> u32 {
+    (ratio * 3 / 8) as u32
 }
 
 /// The indices of the set bits of `mask`, lowest first.

@@ -87,6 +87,13 @@ fn assert_recovered(sent: &[Frame], got: &[Frame], lock: usize) {
     assert!(got.len() + 1 >= tail.len(), "lost frames after lock");
 }
 
+/// Frames a clean stream takes to publish its first: the hunt's two start edges,
+/// then the young lock's periods ([`timing::SETTLED`]).
+pub(super) const LOCK: usize = 3 + ACQUISITION;
+
+/// Decoded periods of a new lock that publish nothing (acquisition).
+pub(super) const ACQUISITION: usize = (timing::SETTLED - 2) as usize;
+
 const MODES: [Mode; 4] = [
     Mode::Normal { channel: 3 },
     Mode::Vote3 {
@@ -105,7 +112,7 @@ fn clean_streams_are_recovered_in_every_mode() {
             for mode in MODES {
                 let mut rx = HansRx::new(hz, mode).unwrap();
                 let events = run(&mut rx, &words, 7);
-                assert_recovered(&sent, &published(&events), 3);
+                assert_recovered(&sent, &published(&events), LOCK);
             }
         }
     }
@@ -163,17 +170,17 @@ fn push_at_positions_follow_the_frames_last_bits() {
             );
             n += 1;
         }
-        assert!(n >= sent.len() - 3, "{mode:?}: {n} frames");
+        assert!(n >= sent.len() - LOCK, "{mode:?}: {n} frames");
         assert!(whole.windows(2).all(|w| w[0].0 <= w[1].0), "{mode:?}");
     }
 }
 
 #[test]
 fn a_flipped_bit_is_never_published() {
-    let sent = frames(12, 3);
+    let sent = frames(22, 3);
     let mut bits = line_bits(&sent);
-    // Frame 6, DATA2 D7 (line bit 2 + 40 + 2*(19-7)): invert the whole bit time.
-    let at = 6 * 125 + 2 + 40 + 2 * 12;
+    // Frame 16, DATA2 D7 (line bit 2 + 40 + 2*(19-7)): invert the whole bit time.
+    let at = 16 * 125 + 2 + 40 + 2 * 12;
     bits[at] = !bits[at];
     let words = oversample(&bits, 3.0, 0.2);
     for mode in [Mode::Normal { channel: 1 }, Mode::Super] {
@@ -181,10 +188,13 @@ fn a_flipped_bit_is_never_published() {
         let events = run(&mut rx, &words, 5);
         let got = published(&events);
         assert!(
-            !got.contains(&sent[6]),
+            !got.contains(&sent[16]),
             "{mode:?} published a corrupted frame"
         );
-        assert!(got.contains(&sent[5]) && got.contains(&sent[7]), "{mode:?}");
+        assert!(
+            got.contains(&sent[15]) && got.contains(&sent[17]),
+            "{mode:?}"
+        );
         assert!(events.contains(&RxEvent::Fault {
             channel: Some(1),
             kind: FaultKind::CheckFailed
@@ -221,7 +231,7 @@ fn super_mode_checks_differing_channels_on_their_own() {
             let part = chans.map(|c| &c[i..(i + chunk).min(n)]);
             rx.push(&part, &mut |e| events.push(e));
         }
-        assert_recovered(&sent, &published(&events), 3);
+        assert_recovered(&sent, &published(&events), LOCK);
         assert_eq!(rx.stats(2).unwrap().check_failures, 1);
         assert!(events.contains(&RxEvent::Fault {
             channel: Some(2),
@@ -480,7 +490,11 @@ fn timing_tracks_rate_offsets() {
         let words = oversample(&line_bits(&sent), ratio, 0.4);
         let mut rx = HansRx::new(40_000_000, Mode::Normal { channel: 4 }).unwrap();
         let got = published(&run(&mut rx, &words, 11));
-        assert!(got.len() + 4 >= sent.len(), "{ratio}: {} frames", got.len());
+        assert!(
+            got.len() + LOCK + 1 >= sent.len(),
+            "{ratio}: {} frames",
+            got.len()
+        );
         let tracked = f64::from(rx.timing.ratio) / 65536.0;
         assert!(
             (tracked - ratio).abs() < 0.002,
@@ -500,7 +514,7 @@ proptest! {
         let hz = (ratio * 12.5e6).round() as u32;
         let mut rx = HansRx::new(hz, Mode::Super).unwrap();
         let events = run(&mut rx, &words, chunk);
-        assert_recovered(&sent, &published(&events), 3);
+        assert_recovered(&sent, &published(&events), LOCK);
     }
 }
 

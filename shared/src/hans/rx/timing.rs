@@ -14,6 +14,12 @@ use crate::hans::FRAME_BITS;
 
 /// Frames after which the alpha-beta gains stop shrinking.
 const FIT_FRAMES: i32 = 128;
+/// Start edges a lock must have measured before its frames are published: the
+/// first edges set phase and rate with large gains, so a rate measured over one
+/// jittered frame, or a false edge among them, can leave the sampling phase
+/// drifting by half a bit and more across a frame. From here on the gains are
+/// small (phase 0.42, period 0.08) and an outlier edge is not followed.
+pub const SETTLED: i32 = 8;
 /// Bits in a frame as the fixed-point multiplier.
 const BITS: i32 = FRAME_BITS as i32;
 
@@ -85,7 +91,15 @@ impl Timing {
         // FIT_FRAMES): phase 2(2k-1)/(k(k+1)), period 6/(k(k+1)). The search window
         // bounds the error to about ±2 bits (< 2^20 in Q16), so the products stay far
         // inside i32 and the divisions are single instructions on the M7.
-        let err = err.clamp(-(1 << 21), 1 << 21);
+        let mut err = err.clamp(-(1 << 21), 1 << 21);
+        // A settled lock predicts a good line's edge within its jitter plus half a
+        // sample; an edge half a bit or more off is a false (noise) or a missing
+        // (next edge found) one. The timing coasts on its prediction: a frame that
+        // is really off then fails its own confirmation (`HansRx::confirmed`), and
+        // failing channels realign, or the lock is lost.
+        if self.settled() && err.unsigned_abs() > (self.ratio / 2).unsigned_abs() {
+            err = 0;
+        }
         self.fits = (self.fits + 1).min(FIT_FRAMES);
         let k = self.fits;
         let start = self
@@ -94,6 +108,11 @@ impl Timing {
         let period = self.period.saturating_add(err * 6 / (k * (k + 1)));
         self.set(start, period);
         (self.bounds.0..=self.bounds.1).contains(&period)
+    }
+
+    /// True once the lock has measured [`SETTLED`] start edges.
+    pub fn settled(&self) -> bool {
+        self.fits >= SETTLED
     }
 
     /// Offset of position `p` from the current start edge.
