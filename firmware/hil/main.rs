@@ -48,9 +48,8 @@ mod tests {
     use shared::xy3::{Frame as Frame3, FrameSize};
     use xy_bridge::board::HANS_FS_HZ;
     use xy_bridge::board::{self, Board};
-    use xy_bridge::dma_ring;
     use xy_bridge::drivers::backchannel;
-    use xy_bridge::drivers::hans_lines::HansLines;
+    use xy_bridge::drivers::hans_lines::HansInput;
     use xy_bridge::drivers::oversample_clock;
     use xy_bridge::drivers::serial_tx::SerialTx;
     use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
@@ -59,6 +58,7 @@ mod tests {
     use xy_bridge::drivers::sync_marks::{SyncEdgeHandler, SyncMarks};
     use xy_bridge::drivers::wave_out::WaveOut;
     use xy_bridge::drivers::xy2_sampler::Xy2Sampler;
+    use xy_bridge::{dma_ring, hans_rings};
 
     use super::Prng;
 
@@ -1227,8 +1227,8 @@ mod tests {
     /// HANS-100 head output -> HANS-100 controller input, all five channels. Jumpers:
     /// PE6 (SAI1_SD_A) -> PD7 (CH1), PC1 (CH2), PC12 (CH3), PE14 (CH4), PF9 (CH5);
     /// PC6 (TIM3 CH1, fs) -> PA5, PB10, PC10, PE12, PF7 (the SCK bus). The SAI replays
-    /// 8 frames, slot 5 with one bit flipped. `HansLines` starts the five SPIs with fs
-    /// held low, as `hans_in` does, and captures 1024 words per channel (41 frame
+    /// 8 frames, slot 5 with one bit flipped. `HansInput` starts the five SPIs with fs
+    /// held low (the same code as `hans_in`), and captures 1024 words per channel (41 frame
     /// periods), fed to the receiver 64 words at a time as `hans_decode` does. In
     /// super mode every channel must verify at least 28 frames on its own (so every
     /// channel is wired and aligned), and in super, vote3 (1, 3, 5) and normal
@@ -1255,30 +1255,16 @@ mod tests {
         ring_bytes[flip / 8] ^= 0x80 >> (flip % 8);
 
         let mut fs = oversample_clock::start(r.fs.tim, Some(r.fs.ctrl), None);
-        let (mut x, mut h) = (r.xy3_in, r.hans_in);
-        let rings = [
-            dma_ring!(".sram1", u16, 2 * WORDS),
-            dma_ring!(".sram1", u16, 2 * WORDS),
-            dma_ring!(".sram1", u16, 2 * WORDS),
-            dma_ring!(".sram1", u16, 2 * WORDS),
-            dma_ring!(".sram1", u16, 2 * WORDS),
-        ];
-        let [r1, r2, r3, r4, r5] = rings;
-        let rings = [
-            &mut r1[..],
-            &mut r2[..],
-            &mut r3[..],
-            &mut r4[..],
-            &mut r5[..],
-        ];
+        // Rings twice the capture: `read` fills channel 1's capture first while the
+        // others keep filling.
+        let mut input = HansInput::new(r.xy3_in, r.hans_in, hans_rings!(2 * WORDS));
         // The line is driven before the capture starts.
         let ring = dma_ring!(".sram2", u8, RING_BYTES);
         ring.copy_from_slice(&ring_bytes);
         let o = r.hans_out;
         let mut channel = None;
         let _tx = SerialTx::new(o.sai, o.sd, o.dma, Irqs, &mut channel, ring);
-        let mut lines =
-            HansLines::start(&mut x, &mut h, 0b1_1111, rings, Irqs, &mut fs.ctrl).unwrap();
+        let mut lines = input.start(0b1_1111, Irqs, &mut fs.ctrl).unwrap();
 
         let mut words = [[0u16; WORDS]; 5];
         with_timeout(WAIT, lines.read(&mut words))
