@@ -67,8 +67,8 @@ pub struct HansInput<'d> {
 impl<'d> HansInput<'d> {
     /// Takes the lines and `rings` (indexed by channel number - 1, from
     /// [`hans_rings!`]) and turns the XY3-100 clock buffer off for good: fs drives
-    /// the SCK bus now, and the buffer would drive it too (README "Peripheral
-    /// allocation", pair 2). The `Output` is forgotten on purpose: dropping it would
+    /// the SCK bus now, and the buffer would drive it too (README "Wiring / pin
+    /// map", pair 2). The `Output` is forgotten on purpose: dropping it would
     /// turn the pin back into an input and let OE# float.
     pub fn new<const N: usize>(
         x: Xy3InRes,
