@@ -62,6 +62,31 @@ fn bridge(d: &Path, config: &str, input: &str, extra: &[&str]) -> Out {
     ok_in(d, &a)
 }
 
+/// [`bridge`], then `decode` of its output file `out/{file}` with `args` (`--protocol`
+/// and its options): the bridge's and `decode`'s output.
+fn bridge_and_decode(
+    d: &Path,
+    config: &str,
+    input: &str,
+    extra: &[&str],
+    file: &str,
+    args: &[&str],
+) -> (Out, Out) {
+    let o = bridge(d, config, input, extra);
+    let path = format!("out/{file}");
+    let mut a = vec!["decode"];
+    a.extend_from_slice(args);
+    a.extend(["--input", path.as_str()]);
+    (o, ok_in(d, &a))
+}
+
+/// The bridge's printout lists its output file `out/{file}` with the signals `names`
+/// (as documented).
+fn assert_listed(o: &Out, file: &str, names: &str) {
+    let listed = format!("out/{file} ({names})");
+    assert!(o.stderr.contains(&listed), "no `{listed}` in {}", o.stderr);
+}
+
 /// A counter from the bridge's printout (`name N`).
 fn counter(stderr: &str, name: &str) -> u64 {
     let at = stderr
@@ -84,14 +109,22 @@ fn xy_forward(r: &ForwardRecord) -> Option<(Position, Position)> {
     Some((p("x")?, p("y")?))
 }
 
-/// Decodes the head-side file as `head` (xy2 / xy3 / hans): X/Y as head-width raw
-/// values, and the number of error records.
-fn head_positions(d: &Path, head: &str, bits: u8) -> (Vec<(u32, u32)>, usize) {
-    let mut args = vec!["decode", "--protocol", head, "--input", "out/head.vcd"];
+/// [`bridge_and_decode`] of the head-side file as `head` (xy2 / xy3 / hans) with
+/// `bits`-bit positions: the bridge's output, X/Y as head-width raw values, and the
+/// number of error records.
+fn bridge_to_head(
+    d: &Path,
+    config: &str,
+    input: &str,
+    extra: &[&str],
+    head: &str,
+    bits: u8,
+) -> (Out, Vec<(u32, u32)>, usize) {
+    let mut args = vec!["--protocol", head];
     if head == "xy2" && bits == 18 {
         args.extend(["--xy2-mode", "18"]);
     }
-    let o = ok_in(d, &args);
+    let (bridged, o) = bridge_and_decode(d, config, input, extra, "head.vcd", &args);
     let mut pos = Vec::new();
     let mut errors = 0;
     if head == "hans" {
@@ -119,7 +152,7 @@ fn head_positions(d: &Path, head: &str, bits: u8) -> (Vec<(u32, u32)>, usize) {
             }
         }
     }
-    (pos, errors)
+    (bridged, pos, errors)
 }
 
 /// What a head-side file must show.
@@ -237,11 +270,11 @@ fn xy2_to_xy3_and_hans_heads() {
         // Slaved: one output frame per input frame, never a repeat.
         ("xy3", 20, 1, "[output]\ntiming = \"slaved\"\n"),
     ] {
-        let o = bridge(&d, &config("xy2", head, extra), "in.vcd", &[]);
+        let cfg = config("xy2", head, extra);
+        let (o, got, errors) = bridge_to_head(&d, &cfg, "in.vcd", &[], head, bits);
         assert_eq!(counter(&o.stderr, "frames ok"), 300, "{}", o.stderr);
         assert_eq!(counter(&o.stderr, "check failures"), 0);
         assert!(o.stderr.contains("link: Safe at 0.000 ms, Running at"));
-        let (got, errors) = head_positions(&d, head, bits);
         assert_eq!(errors, 0, "{head}");
         let e = Expect {
             bits,
@@ -256,11 +289,7 @@ fn xy2_to_xy3_and_hans_heads() {
         } else {
             "clk sync x y z laser_gate"
         };
-        assert!(
-            o.stderr.contains(&format!("out/head.vcd ({names})")),
-            "{}",
-            o.stderr
-        );
+        assert_listed(&o, "head.vcd", names);
     }
 }
 
@@ -270,19 +299,14 @@ fn xy3_and_hans_controllers_with_axis_map() {
     // XY3-100 (24-bit, 2.4 MHz: 96 kHz frames) -> XY2-100 16-bit: narrowing, the
     // output faster than the input (repeats), X and Y swapped.
     let sent = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random"));
-    let o = bridge(
-        &d,
-        &config("xy3", "xy2", "[axes]\nswap_xy = true\n"),
-        "xy3.vcd",
-        &[],
-    );
+    let cfg = config("xy3", "xy2", "[axes]\nswap_xy = true\n");
+    let (o, got, errors) = bridge_to_head(&d, &cfg, "xy3.vcd", &[], "xy2", 16);
     assert_eq!(counter(&o.stderr, "frames ok"), 300, "{}", o.stderr);
     let repeated = counter(&o.stderr, "repeated");
     assert!(
         repeated >= 5,
         "a 96 kHz input into 100 kHz slots repeats: {repeated}"
     );
-    let (got, errors) = head_positions(&d, "xy2", 16);
     assert_eq!(errors, 0);
     let e = Expect {
         bits: 16,
@@ -294,16 +318,13 @@ fn xy3_and_hans_controllers_with_axis_map() {
 
     // HANS-100 (super mode) -> XY3-100 32-bit: widening 20 -> 26 bits.
     let sent = sent_hans(&generate_pattern(&d, "hans", "hans", "raster"));
-    let o = bridge(
-        &d,
-        &config(
-            "hans",
-            "xy3",
-            "[controller.hans]\ndecode = \"super\"\n[head.xy3]\nframe_bits = 32\n",
-        ),
-        "hans.vcd",
-        &["--hans-oversample", "4"],
+    let cfg = config(
+        "hans",
+        "xy3",
+        "[controller.hans]\ndecode = \"super\"\n[head.xy3]\nframe_bits = 32\n",
     );
+    let oversample = ["--hans-oversample", "4"];
+    let (o, got, errors) = bridge_to_head(&d, &cfg, "hans.vcd", &oversample, "xy3", 26);
     // The HANS-100 receiver needs about two frames to lock, then publishes after
     // its young lock's periods.
     assert!(
@@ -311,7 +332,6 @@ fn xy3_and_hans_controllers_with_axis_map() {
         "{}",
         o.stderr
     );
-    let (got, errors) = head_positions(&d, "xy3", 26);
     assert_eq!(errors, 0);
     let e = Expect {
         bits: 26,
@@ -371,7 +391,8 @@ fn the_other_pairings() {
         ),
     ];
     for (ctrl, input, sent, head, bits, extra, skip) in cases {
-        let o = bridge(&d, &config(ctrl, head, extra), input, &[]);
+        let cfg = config(ctrl, head, extra);
+        let (o, got, errors) = bridge_to_head(&d, &cfg, input, &[], head, bits);
         let young = if ctrl == "hans" { HANS_YOUNG as u64 } else { 0 };
         assert!(
             counter(&o.stderr, "frames ok") >= 298 - young,
@@ -379,7 +400,6 @@ fn the_other_pairings() {
             o.stderr
         );
         assert_eq!(counter(&o.stderr, "check failures"), 0, "{}", o.stderr);
-        let (got, errors) = head_positions(&d, head, bits);
         assert_eq!(errors, 0, "{ctrl} -> {head}");
         // Each HANS-100 receiver (bridge input, head decode) publishes after its
         // young lock's periods.
@@ -398,11 +418,9 @@ fn the_other_pairings() {
     // decodes them in every frame (`generate` sends them at the centre; the pipeline
     // tests check moving values).
     let five = "[controller.xy3]\nlines = [\"x\", \"y\", \"z\", \"u\", \"w\"]\n";
-    bridge(&d, &config("xy3", "xy3", five), "xy3.vcd", &[]);
-    let o = ok_in(
-        &d,
-        &["decode", "--protocol", "xy3", "--input", "out/head.vcd"],
-    );
+    let xy3_head = ["--protocol", "xy3"];
+    let cfg = config("xy3", "xy3", five);
+    let (_, o) = bridge_and_decode(&d, &cfg, "xy3.vcd", &[], "head.vcd", &xy3_head);
     let records = jsonl::parse::<ForwardRecord>(&o.stdout).unwrap();
     assert!(records.len() >= 280, "{} records", records.len());
     for (_, r) in &records {
@@ -414,11 +432,8 @@ fn the_other_pairings() {
         }
     }
     // Without U / W from the controller the head's pairs 7 / 8 stay undriven.
-    bridge(&d, &config("xy3", "xy3", ""), "xy3.vcd", &[]);
-    let o = ok_in(
-        &d,
-        &["decode", "--protocol", "xy3", "--input", "out/head.vcd"],
-    );
+    let cfg = config("xy3", "xy3", "");
+    let (_, o) = bridge_and_decode(&d, &cfg, "xy3.vcd", &[], "head.vcd", &xy3_head);
     for (_, r) in jsonl::parse::<ForwardRecord>(&o.stdout).unwrap() {
         assert!(
             r.channel("u").is_none() && r.channel("w").is_none(),
@@ -463,14 +478,12 @@ fn capture_from_another_tool_through_the_bridge() {
     let map = [
         "--map", "clk=D0", "--map", "sync=D1", "--map", "x=D2", "--map", "y=D3",
     ];
-    let o = bridge(&d, cfg, vcd.to_str().unwrap(), &map);
+    let input = vcd.to_str().unwrap();
+    let xy2_head = ["--protocol", "xy2"];
+    let (o, dec) = bridge_and_decode(&d, cfg, input, &map, "head.vcd", &xy2_head);
     assert_eq!(counter(&o.stderr, "frames ok"), 2, "{}", o.stderr);
     assert_eq!(counter(&o.stderr, "(forwarded"), 1, "{}", o.stderr);
-    assert!(o.stderr.contains("out/head.vcd (clk sync x y laser_gate)"));
-    let dec = ok_in(
-        &d,
-        &["decode", "--protocol", "xy2", "--input", "out/head.vcd"],
-    );
+    assert_listed(&o, "head.vcd", "clk sync x y laser_gate");
     let want = concat!(
         r#"{"t_ns":30000,"x":{"pos":0,"bits":16},"y":{"pos":32768,"bits":16}}"#,
         "\n",
@@ -502,7 +515,8 @@ fn broken_line_is_never_forwarded_then_hold_and_park() {
             "y,10000",
         ],
     ));
-    let o = bridge(&d, &config("xy2", "xy3", ""), "in.vcd", &[]);
+    let cfg = config("xy2", "xy3", "");
+    let (o, got, errors) = bridge_to_head(&d, &cfg, "in.vcd", &[], "xy3", 20);
     assert!(counter(&o.stderr, "check failures") >= 1999, "{}", o.stderr);
     assert_eq!(counter(&o.stderr, "input losses"), 1);
     // Lost 1 ms after the last good frame, parked 10 ms later.
@@ -513,7 +527,6 @@ fn broken_line_is_never_forwarded_then_hold_and_park() {
     );
     assert!(o.stderr.contains("laser gate: off at 0.000 ms, on at"));
     assert!(o.stderr.contains("off at 11.000 ms"), "{}", o.stderr);
-    let (got, errors) = head_positions(&d, "xy3", 20);
     assert_eq!(errors, 0);
     let want: Vec<(u32, u32)> = sent
         .iter()
@@ -808,22 +821,10 @@ fn controller_status_files_decode() {
     // parser takes without a single error: SYNC first, then the error state: DSP
     // data error (code 2) while the link is not running, cleared once it runs.
     generate_pattern(&d, "xy3", "xy3", "steps");
-    let o = bridge(&d, &config("xy3", "xy2", ""), "xy3.vcd", &[]);
-    assert!(
-        o.stderr.contains("out/controller-status.vcd (back)"),
-        "{}",
-        o.stderr
-    );
-    let dec = ok_in(
-        &d,
-        &[
-            "decode",
-            "--protocol",
-            "xy3-back",
-            "--input",
-            "out/controller-status.vcd",
-        ],
-    );
+    let (file, cfg) = ("controller-status.vcd", config("xy3", "xy2", ""));
+    let back = ["--protocol", "xy3-back"];
+    let (o, dec) = bridge_and_decode(&d, &cfg, "xy3.vcd", &[], file, &back);
+    assert_listed(&o, file, "back");
     let packets: Vec<(u8, String)> = jsonl::parse::<BackRecord>(&dec.stdout)
         .unwrap()
         .into_iter()
@@ -853,26 +854,17 @@ fn controller_status_files_decode() {
             "200",
         ],
     );
-    let o = bridge(&d, &config("hans", "xy3", ""), "hans.vcd", &[]);
-    assert!(
-        o.stderr.contains("out/controller-status.vcd (status)"),
-        "{}",
-        o.stderr
-    );
-    let dec = ok_in(
-        &d,
-        &[
-            "decode",
-            "--protocol",
-            "hans",
-            "--hans-mode",
-            "normal:1",
-            "--map",
-            "ch1=status",
-            "--input",
-            "out/controller-status.vcd",
-        ],
-    );
+    let cfg = config("hans", "xy3", "");
+    let ch1 = [
+        "--protocol",
+        "hans",
+        "--hans-mode",
+        "normal:1",
+        "--map",
+        "ch1=status",
+    ];
+    let (o, dec) = bridge_and_decode(&d, &cfg, "hans.vcd", &[], file, &ch1);
+    assert_listed(&o, file, "status");
     let frames = jsonl::parse::<HansRecord>(&dec.stdout).unwrap();
     assert!(frames.len() >= 150, "{}", dec.stderr);
     assert!(frames
