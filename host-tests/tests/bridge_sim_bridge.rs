@@ -31,20 +31,30 @@ fn generate(d: &Path, name: &str, args: &[&str]) -> Vec<String> {
     text.lines().map(str::to_owned).collect()
 }
 
-/// `generate` of 300 frames of `pattern` on `protocol`; returns the frames sent.
-fn generate_pattern(d: &Path, name: &str, protocol: &str, pattern: &str) -> Vec<String> {
-    generate(
-        d,
-        name,
-        &[
-            "--protocol",
-            protocol,
-            "--pattern",
-            pattern,
-            "--frames",
-            "300",
-        ],
-    )
+/// `generate` of `frames` frames of `pattern` on `protocol`; returns the frames sent.
+fn generate_pattern(
+    d: &Path,
+    name: &str,
+    protocol: &str,
+    pattern: &str,
+    frames: &str,
+) -> Vec<String> {
+    let args = [
+        "--protocol",
+        protocol,
+        "--pattern",
+        pattern,
+        "--frames",
+        frames,
+    ];
+    generate(d, name, &args)
+}
+
+/// The controller's `status` line the bridge wrote (`out/controller-status.vcd`).
+fn controller_status(d: &Path) -> Signal {
+    let path = d.join("out/controller-status.vcd");
+    let wave = read_vcd_file(&path, &["status"], &NameMap::new()).unwrap();
+    wave.get("status").unwrap().clone()
 }
 
 fn bridge(d: &Path, config: &str, input: &str, extra: &[&str]) -> Out {
@@ -262,7 +272,7 @@ fn config(controller: &str, head: &str, extra: &str) -> String {
 #[test]
 fn xy2_to_xy3_and_hans_heads() {
     let d = dir("xy2");
-    let sent = sent_positions(&generate_pattern(&d, "in", "xy2", "circle"));
+    let sent = sent_positions(&generate_pattern(&d, "in", "xy2", "circle", "300"));
     for (head, bits, skip, extra) in [
         ("xy3", 20, 1, ""),
         ("xy3", 26, 1, "[head.xy3]\nframe_bits = 32\n"),
@@ -298,7 +308,7 @@ fn xy3_and_hans_controllers_with_axis_map() {
     let d = dir("xy3_hans");
     // XY3-100 (24-bit, 2.4 MHz: 96 kHz frames) -> XY2-100 16-bit: narrowing, the
     // output faster than the input (repeats), X and Y swapped.
-    let sent = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random"));
+    let sent = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random", "300"));
     let cfg = config("xy3", "xy2", "[axes]\nswap_xy = true\n");
     let (o, got, errors) = bridge_to_head(&d, &cfg, "xy3.vcd", &[], "xy2", 16);
     assert_eq!(counter(&o.stderr, "frames ok"), 300, "{}", o.stderr);
@@ -317,7 +327,7 @@ fn xy3_and_hans_controllers_with_axis_map() {
     check_forwarded(&sent, &got, &e);
 
     // HANS-100 (super mode) -> XY3-100 32-bit: widening 20 -> 26 bits.
-    let sent = sent_hans(&generate_pattern(&d, "hans", "hans", "raster"));
+    let sent = sent_hans(&generate_pattern(&d, "hans", "hans", "raster", "300"));
     let cfg = config(
         "hans",
         "xy3",
@@ -345,8 +355,8 @@ fn xy3_and_hans_controllers_with_axis_map() {
 #[test]
 fn the_other_pairings() {
     let d = dir("others");
-    let xy3 = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random"));
-    let hans = sent_hans(&generate_pattern(&d, "hans", "hans", "random"));
+    let xy3 = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random", "300"));
+    let hans = sent_hans(&generate_pattern(&d, "hans", "hans", "random", "300"));
     // (controller, capture, frames sent, head, head bits, extra keys, frames the
     // receivers need to lock: HANS-100 in and out take about two each, plus
     // HANS_YOUNG).
@@ -550,18 +560,7 @@ fn broken_line_is_never_forwarded_then_hold_and_park() {
 #[test]
 fn head_status_reaches_the_controller() {
     let d = dir("status");
-    generate(
-        &d,
-        "in",
-        &[
-            "--protocol",
-            "xy2",
-            "--pattern",
-            "circle",
-            "--frames",
-            "400",
-        ],
-    );
+    generate_pattern(&d, "in", "xy2", "circle", "400");
     // A healthy HANS-100 head: the controller's STATUS (level, low = OK) goes OK once
     // the link runs, and the gate opens.
     let status = d.join("status.vcd");
@@ -580,13 +579,7 @@ fn head_status_reaches_the_controller() {
         o.stderr
     );
     assert_eq!(counter(&o.stderr, "head status losses"), 0);
-    let level = read_vcd_file(
-        &d.join("out/controller-status.vcd"),
-        &["status"],
-        &NameMap::new(),
-    )
-    .unwrap();
-    let s = level.get("status").unwrap();
+    let s = controller_status(&d);
     assert!(s.initial(), "fault (high) before the link runs");
     assert!(!s.level_at(3_000_000_000), "OK at 3 ms");
     assert!(o.stderr.contains("laser gate: off at 0.000 ms, on at"));
@@ -614,13 +607,7 @@ fn head_status_reaches_the_controller() {
         "{}",
         o.stderr
     );
-    let level = read_vcd_file(
-        &d.join("out/controller-status.vcd"),
-        &["status"],
-        &NameMap::new(),
-    )
-    .unwrap();
-    assert!(level.get("status").unwrap().level_at(3_000_000_000));
+    assert!(controller_status(&d).level_at(3_000_000_000));
 
     // No status capture: STATUS_LOST once status_timeout_us has passed.
     let cfg_short = format!("{cfg}status_timeout_us = 1000\n");
@@ -651,13 +638,8 @@ fn xy2_status_word_line(word: xy2::StatusWord, periods: usize) -> Waveform {
 /// own CLK falling edges, one per controller frame (20 samples ending in SYNC low).
 fn xy2_status_words_at_controller(d: &Path) -> Vec<Result<xy2::StatusWord, xy2::StatusError>> {
     let ctrl = read_vcd_file(&d.join("in.vcd"), &["clk", "sync"], &NameMap::new()).unwrap();
-    let status = read_vcd_file(
-        &d.join("out/controller-status.vcd"),
-        &["status"],
-        &NameMap::new(),
-    )
-    .unwrap();
-    let (sync, line) = (ctrl.get("sync").unwrap(), status.get("status").unwrap());
+    let line = controller_status(d);
+    let sync = ctrl.get("sync").unwrap();
     let mut words = Vec::new();
     let (mut acc, mut n) = (0u32, 0);
     for t in ctrl.get("clk").unwrap().falling_edges() {
@@ -679,18 +661,7 @@ fn xy2_status_words_at_controller(d: &Path) -> Vec<Result<xy2::StatusWord, xy2::
 #[test]
 fn xy2_status_words_both_ways() {
     let d = dir("xy2_word");
-    generate(
-        &d,
-        "in",
-        &[
-            "--protocol",
-            "xy2",
-            "--pattern",
-            "circle",
-            "--frames",
-            "400",
-        ],
-    );
+    generate_pattern(&d, "in", "xy2", "circle", "400");
     // The head reports an over-temperature in every word.
     let hot = xy2::StatusWord {
         temperature_ok: false,
@@ -754,18 +725,7 @@ fn gate_changes(stderr: &str) -> Vec<(bool, f64)> {
 #[test]
 fn xy3_head_backchannel_alarm_turns_the_gate_off() {
     let d = dir("back");
-    generate(
-        &d,
-        "in",
-        &[
-            "--protocol",
-            "xy2",
-            "--pattern",
-            "circle",
-            "--frames",
-            "2000",
-        ],
-    );
+    generate_pattern(&d, "in", "xy2", "circle", "2000");
     // The head's backchannel as `generate` makes it: a cycle of status packets whose
     // ERROR_STATE reports nothing at first, then an error code.
     let packets: Vec<(u64, u8, Vec<u8>)> =
@@ -803,13 +763,7 @@ fn xy3_head_backchannel_alarm_turns_the_gate_off() {
         gate[2].1
     );
     // The controller's STATUS level shows the fault from then on.
-    let level = read_vcd_file(
-        &d.join("out/controller-status.vcd"),
-        &["status"],
-        &NameMap::new(),
-    )
-    .unwrap();
-    let s = level.get("status").unwrap();
+    let s = controller_status(&d);
     assert!(!s.level_at(((done_ms - 0.2) * 1e9) as u64));
     assert!(s.level_at(((done_ms + 0.2) * 1e9) as u64));
 }
@@ -820,7 +774,7 @@ fn controller_status_files_decode() {
     // An XY3-100 controller gets the backchannel, which the `decode` backchannel
     // parser takes without a single error: SYNC first, then the error state: DSP
     // data error (code 2) while the link is not running, cleared once it runs.
-    generate_pattern(&d, "xy3", "xy3", "steps");
+    generate_pattern(&d, "xy3", "xy3", "steps", "300");
     let (file, cfg) = ("controller-status.vcd", config("xy3", "xy2", ""));
     let back = ["--protocol", "xy3-back"];
     let (o, dec) = bridge_and_decode(&d, &cfg, "xy3.vcd", &[], file, &back);
@@ -842,18 +796,7 @@ fn controller_status_files_decode() {
     );
 
     // A HANS-100 controller gets STATUS frames on `status`: decoded as channel 1.
-    generate(
-        &d,
-        "hans",
-        &[
-            "--protocol",
-            "hans",
-            "--pattern",
-            "circle",
-            "--frames",
-            "200",
-        ],
-    );
+    generate_pattern(&d, "hans", "hans", "circle", "200");
     let cfg = config("hans", "xy3", "");
     let ch1 = [
         "--protocol",
