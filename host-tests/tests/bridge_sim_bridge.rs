@@ -97,6 +97,15 @@ fn assert_listed(o: &Out, file: &str, names: &str) {
     assert!(o.stderr.contains(&listed), "no `{listed}` in {}", o.stderr);
 }
 
+/// The bridge's printout reports the head's `alarm` at the end of the run and a laser
+/// gate that never opened.
+fn assert_alarm_keeps_gate_off(o: &Out, alarm: &str) {
+    let alarm = format!("alarms at the end: {alarm}");
+    for want in [alarm.as_str(), "laser gate: off at 0.000 ms\n"] {
+        assert!(o.stderr.contains(want), "no `{want}` in {}", o.stderr);
+    }
+}
+
 /// A counter from the bridge's printout (`name N`).
 fn counter(stderr: &str, name: &str) -> u64 {
     let at = stderr
@@ -597,16 +606,7 @@ fn head_status_reaches_the_controller() {
     )
     .unwrap();
     let o = bridge(&d, cfg, "in.vcd", &["--head-status", "status.vcd"]);
-    assert!(
-        o.stderr.contains("alarms at the end: power"),
-        "{}",
-        o.stderr
-    );
-    assert!(
-        o.stderr.contains("laser gate: off at 0.000 ms\n"),
-        "{}",
-        o.stderr
-    );
+    assert_alarm_keeps_gate_off(&o, "power");
     assert!(controller_status(&d).level_at(3_000_000_000));
 
     // No status capture: STATUS_LOST once status_timeout_us has passed.
@@ -684,16 +684,7 @@ fn xy2_status_words_both_ways() {
         "{}",
         o.stderr
     );
-    assert!(
-        o.stderr.contains("alarms at the end: temperature"),
-        "{}",
-        o.stderr
-    );
-    assert!(
-        o.stderr.contains("laser gate: off at 0.000 ms\n"),
-        "{}",
-        o.stderr
-    );
+    assert_alarm_keeps_gate_off(&o, "temperature");
     // The controller reads a valid status word in every frame after the first:
     // INPUT_LOST (power bit cleared) until the link runs, then the head's
     // over-temperature.
