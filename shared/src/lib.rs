@@ -12,12 +12,15 @@
 //! - [`xy3`]: XY3-100 forward frames, commands and the RS485 backchannel.
 //! - [`hans`]: the HANS-100 protocol.
 //! - [`bridge`]: the bridge engine (configuration, translation, supervision, status).
+//! - [`head_port`]: the board's head-side waveform pins and ticks (firmware and host
+//!   pipeline alike).
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
 pub mod bridge;
 pub mod hans;
+pub mod head_port;
 pub mod model;
 pub mod xy2;
 pub mod xy3;
