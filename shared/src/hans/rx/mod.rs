@@ -668,6 +668,23 @@ impl HansRx {
         sink: &mut impl FnMut(RxEvent),
     ) -> u8 {
         let ref_decoded = Frame::decode(ref_pattern);
+        // The steady state: every used channel holds the reference's pattern, its
+        // timing confirmed, and it passed. Every channel verified that one frame, so
+        // every mode publishes it (what the general path below concludes too).
+        if same & confirmed == self.used && present == self.used {
+            if let Ok(f) = ref_decoded {
+                for n in bits(present) {
+                    if let (Some(stats), Some(ch)) =
+                        (self.stats.get_mut(n), self.channels.get_mut(n))
+                    {
+                        stats.frames_ok = stats.frames_ok.wrapping_add(1);
+                        ch.failures = 0;
+                    }
+                }
+                sink(RxEvent::Frame(f));
+                return present;
+            }
+        }
         let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
         let mut ok = 0u8;
         for n in bits(present) {

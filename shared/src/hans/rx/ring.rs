@@ -47,7 +47,7 @@ struct Acc {
 }
 
 impl Acc {
-    /// Appends the top `n` bits of `bits` (the rest zero, n <= 12).
+    /// Appends the top `n` bits of `bits` (the rest zero, n <= 24).
     #[inline(always)]
     fn push(&mut self, bits: u32, n: u32) {
         self.cur |= bits >> self.used;
@@ -58,7 +58,7 @@ impl Acc {
             }
             self.full += 1;
             self.used -= 32;
-            // `used` < n here, so the shift is 1..=12.
+            // `used` < n here, so the shift is 1..=24.
             self.cur = bits << (n - self.used);
         }
     }
@@ -108,14 +108,16 @@ impl Ring {
                 at = at.wrapping_add(1);
             }
         }
-        let mut pairs = src.chunks_exact(2);
-        for pair in &mut pairs {
-            if let (Some(slot), [a, b]) = (self.slot_mut(at >> 1), pair) {
-                *slot = u32::from(*a) << 16 | u32::from(*b);
+        let (pairs, tail) = src.as_chunks::<2>();
+        let mut j = at >> 1;
+        for &[a, b] in pairs {
+            if let Some(slot) = self.slot_mut(j) {
+                *slot = u32::from(a) << 16 | u32::from(b);
             }
-            at = at.wrapping_add(2);
+            j = j.wrapping_add(1);
         }
-        if let (Some(&w), Some(slot)) = (pairs.remainder().first(), self.slot_mut(at >> 1)) {
+        at = at.wrapping_add(src.len() as u32 & !1);
+        if let (Some(&w), Some(slot)) = (tail.first(), self.slot_mut(at >> 1)) {
             *slot = *slot & 0xFFFF | u32::from(w) << 16;
         }
     }
@@ -190,7 +192,9 @@ impl Ring {
         // one of the phase `skip` bit times earlier, minus those `skip` centres.
         let phase = first.wrapping_sub(j << (FRAC + 5));
         let skip = (phase / ratio.max(1)).min(12);
-        let e = table.entry(diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5)));
+        let e = &table
+            .entry(diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5)))
+            .a;
         let x = self.window(j);
         let mut all = e.all;
         for _ in 0..skip {
@@ -204,7 +208,11 @@ impl Ring {
             used: n,
         };
         let mut left = FRAME_BITS as u32 - n;
-        let mut pos = first.wrapping_add(n.wrapping_mul(ratio));
+        // The next centre against the start of the next window.
+        let mut ph = diff(
+            first.wrapping_add(n.wrapping_mul(ratio)),
+            j.wrapping_add(1) << (FRAC + 5),
+        );
         if let (true, Some(m), Some(v)) =
             (KEEP, centres.masks.first_mut(), centres.values.first_mut())
         {
@@ -212,15 +220,44 @@ impl Ring {
             *v = x & all;
         }
         let mut k = 1;
-        // Whole windows: every centre is a frame bit.
-        while k < MAX_WINDOWS - 1 {
-            j = j.wrapping_add(1);
-            let e = table.entry(diff(pos, j << (FRAC + 5)));
-            let n = e.count;
+        // Whole windows, two per step ([`super::table::Pair`]): every centre is a
+        // frame bit.
+        while k < MAX_WINDOWS - 2 {
+            let p = table.entry(ph);
+            let (na, nb) = (p.a.count, p.b.count);
+            let n = na + nb;
             if n >= left {
                 break;
             }
+            let x0 = self.window(j.wrapping_add(1));
+            let x1 = self.window(j.wrapping_add(2));
+            acc.push(p.a.bits(x0, slots) | p.b.bits(x1, slots) >> na, n);
+            if let (true, Some(m), Some(v)) = (
+                KEEP,
+                centres.masks.get_mut(k..k + 2),
+                centres.values.get_mut(k..k + 2),
+            ) {
+                if let ([m0, m1], [v0, v1]) = (m, v) {
+                    *m0 = p.a.all;
+                    *v0 = x0 & p.a.all;
+                    *m1 = p.b.all;
+                    *v1 = x1 & p.b.all;
+                }
+            }
+            ph = ph
+                .wrapping_add(n.wrapping_mul(ratio) as i32)
+                .wrapping_sub(64 << FRAC);
+            left -= n;
+            j = j.wrapping_add(2);
+            k += 2;
+        }
+        // At most two windows are left: one more whole window, if the next one does
+        // not hold every remaining centre, then the last.
+        j = j.wrapping_add(1);
+        let mut e = &table.entry(ph).a;
+        if e.count < left && k < MAX_WINDOWS - 1 {
             let x = self.window(j);
+            let n = e.count;
             acc.push(e.bits(x, slots), n);
             if let (true, Some(m), Some(v)) =
                 (KEEP, centres.masks.get_mut(k), centres.values.get_mut(k))
@@ -228,12 +265,15 @@ impl Ring {
                 *m = e.all;
                 *v = x & e.all;
             }
-            pos = pos.wrapping_add(n.wrapping_mul(ratio));
+            ph = ph
+                .wrapping_add(n.wrapping_mul(ratio) as i32)
+                .wrapping_sub(32 << FRAC);
             left -= n;
+            j = j.wrapping_add(1);
             k += 1;
+            e = &table.entry(ph).a;
         }
         // The last window: its first `left` centres.
-        let e = table.entry(diff(pos, j << (FRAC + 5)));
         let x = self.window(j);
         let mut all = e.all;
         for _ in left.min(e.count)..e.count {
