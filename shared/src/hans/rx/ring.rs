@@ -108,16 +108,14 @@ impl Ring {
                 at = at.wrapping_add(1);
             }
         }
-        let (pairs, tail) = src.as_chunks::<2>();
-        let mut j = at >> 1;
-        for &[a, b] in pairs {
-            if let Some(slot) = self.slot_mut(j) {
-                *slot = u32::from(a) << 16 | u32::from(b);
+        let mut pairs = src.chunks_exact(2);
+        for pair in &mut pairs {
+            if let (Some(slot), [a, b]) = (self.slot_mut(at >> 1), pair) {
+                *slot = u32::from(*a) << 16 | u32::from(*b);
             }
-            j = j.wrapping_add(1);
+            at = at.wrapping_add(2);
         }
-        at = at.wrapping_add(src.len() as u32 & !1);
-        if let (Some(&w), Some(slot)) = (tail.first(), self.slot_mut(at >> 1)) {
+        if let (Some(&w), Some(slot)) = (pairs.remainder().first(), self.slot_mut(at >> 1)) {
             *slot = *slot & 0xFFFF | u32::from(w) << 16;
         }
     }
