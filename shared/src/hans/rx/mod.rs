@@ -476,10 +476,11 @@ impl HansRx {
     fn need(&self) -> u32 {
         let t = &self.timing;
         let mut late = 0;
-        for n in bits(self.used) {
-            let d = self.channels.get(n).and_then(|c| c.delay);
+        for (n, c) in self.channels.iter().enumerate() {
             // A channel aligning at this frame may be up to the delay limit late.
-            late = late.max(d.unwrap_or(channel::DELAY_MAX));
+            if self.used & (1 << n) != 0 {
+                late = late.max(c.delay.unwrap_or(channel::DELAY_MAX));
+            }
         }
         // The frame to decode next starts at the current edge, or, once that frame
         // is done, at the predicted next one (whose edge window lies before its
