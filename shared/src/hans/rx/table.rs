@@ -46,10 +46,9 @@ const SLOTS_MASK: u32 = 1 << 31 | 1 << 27 | 1 << 23;
 /// The centres of a window whose first centre is in one phase slot.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
 pub struct Entry {
-    /// Centre samples of group g (bit 31 - p for sample p).
-    masks: [u32; 4],
-    /// Multipliers of group g.
-    mults: [u32; 4],
+    /// Group g's centre samples (bit 31 - p for sample p) and multiplier, side by
+    /// side so that one double load fetches both.
+    groups: [[u32; 2]; 4],
     /// Centres in the window.
     pub count: u32,
     /// All centre samples.
@@ -63,8 +62,7 @@ impl Entry {
     /// mask register and shifted OR operands instead of four mask constants.
     #[inline(always)]
     pub fn bits(&self, x: u32, slots: u32) -> u32 {
-        let [m0, m1, m2, m3] = self.masks;
-        let [k0, k1, k2, k3] = self.mults;
+        let [[m0, k0], [m1, k1], [m2, k2], [m3, k3]] = self.groups;
         let g = |m: u32, k: u32| (x & m).wrapping_mul(k) & slots;
         g(m0, k0) | g(m1, k1) >> 1 | g(m2, k2) >> 2 | g(m3, k3) >> 3
     }
@@ -82,14 +80,12 @@ pub struct Pair {
 /// Stands for an entry out of range (cannot happen: the slot is clamped).
 static EMPTY: Pair = Pair {
     a: Entry {
-        masks: [0; 4],
-        mults: [0; 4],
+        groups: [[0; 2]; 4],
         count: 0,
         all: 0,
     },
     b: Entry {
-        masks: [0; 4],
-        mults: [0; 4],
+        groups: [[0; 2]; 4],
         count: 0,
         all: 0,
     },
@@ -169,7 +165,7 @@ fn build(pos: u32, step: u32) -> Entry {
     while pos < 32 << FRAC && k < 12 {
         let p = pos >> FRAC;
         let g = (k % 4) as usize;
-        if let (Some(m), Some(mult)) = (e.masks.get_mut(g), e.mults.get_mut(g)) {
+        if let Some([m, mult]) = e.groups.get_mut(g) {
             *m |= 1 << (31 - p);
             // Centre k goes to bit 31 - 4 (k / 4) of its group's product; p >= k
             // because centres are at least a sample apart.
