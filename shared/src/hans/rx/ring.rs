@@ -79,10 +79,9 @@ pub struct Centres {
     pub first: u32,
     /// Windows used (at most [`MAX_WINDOWS`]).
     pub count: usize,
-    /// Bit-centre masks of the windows.
-    pub masks: [u32; MAX_WINDOWS],
-    /// The reference's samples under the masks.
-    pub values: [u32; MAX_WINDOWS],
+    /// Per window: the bit-centre mask and the reference's samples under it (side
+    /// by side, so that a compare fetches both with one double load).
+    pub windows: [[u32; 2]; MAX_WINDOWS],
 }
 
 impl Default for Ring {
@@ -211,11 +210,8 @@ impl Ring {
             first.wrapping_add(n.wrapping_mul(ratio)),
             j.wrapping_add(1) << (FRAC + 5),
         );
-        if let (true, Some(m), Some(v)) =
-            (KEEP, centres.masks.first_mut(), centres.values.first_mut())
-        {
-            *m = all;
-            *v = x & all;
+        if let (true, Some(w)) = (KEEP, centres.windows.first_mut()) {
+            *w = [all, x & all];
         }
         let mut k = 1;
         // Whole windows, two per step ([`super::table::Pair`]): every centre is a
@@ -230,17 +226,9 @@ impl Ring {
             let x0 = self.window(j.wrapping_add(1));
             let x1 = self.window(j.wrapping_add(2));
             acc.push(p.a.bits(x0, slots) | p.b.bits(x1, slots) >> na, n);
-            if let (true, Some(m), Some(v)) = (
-                KEEP,
-                centres.masks.get_mut(k..k + 2),
-                centres.values.get_mut(k..k + 2),
-            ) {
-                if let ([m0, m1], [v0, v1]) = (m, v) {
-                    *m0 = p.a.all;
-                    *v0 = x0 & p.a.all;
-                    *m1 = p.b.all;
-                    *v1 = x1 & p.b.all;
-                }
+            if let (true, Some([w0, w1])) = (KEEP, centres.windows.get_mut(k..k + 2)) {
+                *w0 = [p.a.all, x0 & p.a.all];
+                *w1 = [p.b.all, x1 & p.b.all];
             }
             ph = ph
                 .wrapping_add(n.wrapping_mul(ratio) as i32)
@@ -257,11 +245,8 @@ impl Ring {
             let x = self.window(j);
             let n = e.count;
             acc.push(e.bits(x, slots), n);
-            if let (true, Some(m), Some(v)) =
-                (KEEP, centres.masks.get_mut(k), centres.values.get_mut(k))
-            {
-                *m = e.all;
-                *v = x & e.all;
+            if let (true, Some(w)) = (KEEP, centres.windows.get_mut(k)) {
+                *w = [e.all, x & e.all];
             }
             ph = ph
                 .wrapping_add(n.wrapping_mul(ratio) as i32)
@@ -278,11 +263,8 @@ impl Ring {
             all &= all.wrapping_sub(1);
         }
         acc.push(e.bits(x, slots) & all_top(left), left.min(e.count));
-        if let (true, Some(m), Some(v)) =
-            (KEEP, centres.masks.get_mut(k), centres.values.get_mut(k))
-        {
-            *m = all;
-            *v = x & all;
+        if let (true, Some(w)) = (KEEP, centres.windows.get_mut(k)) {
+            *w = [all, x & all];
         }
         centres.count = k + 1;
         let [a, b, c, _] = acc.words;
@@ -296,14 +278,13 @@ impl Ring {
         let mut bad = 0u32;
         let mut j = centres.first;
         let windows = centres
-            .masks
-            .iter()
-            .zip(&centres.values)
-            .take(centres.count);
+            .windows
+            .get(..centres.count)
+            .unwrap_or(&centres.windows);
         if d > 0 {
             let (l, r) = (d as u32 & 31, 31 - (d as u32 & 31));
             let mut here = self.window(j);
-            for (m, v) in windows {
+            for &[m, v] in windows {
                 j = j.wrapping_add(1);
                 let next = self.window(j);
                 bad |= ((here << l | (next >> 1) >> r) & m) ^ v;
@@ -312,14 +293,14 @@ impl Ring {
         } else if d < 0 {
             let (l, r) = (31 - (d.unsigned_abs() & 31), d.unsigned_abs() & 31);
             let mut prev = self.window(j.wrapping_sub(1));
-            for (m, v) in windows {
+            for &[m, v] in windows {
                 let here = self.window(j);
                 bad |= ((((prev << 1) << l) | here >> r) & m) ^ v;
                 prev = here;
                 j = j.wrapping_add(1);
             }
         } else {
-            for (m, v) in windows {
+            for &[m, v] in windows {
                 bad |= (self.window(j) & m) ^ v;
                 j = j.wrapping_add(1);
             }

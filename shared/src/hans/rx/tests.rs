@@ -291,9 +291,9 @@ fn gather_matches_bit_by_bit() {
                 mask_bits += 1;
             }
             assert!(mask_bits > 60);
-            let centre_count: u32 = centres.masks[..centres.count]
+            let centre_count: u32 = centres.windows[..centres.count]
                 .iter()
-                .map(|m| m.count_ones())
+                .map(|[m, _]| m.count_ones())
                 .sum();
             assert_eq!(centre_count, 125);
         }
