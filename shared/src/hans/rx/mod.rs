@@ -22,8 +22,10 @@
 //!    of a bit of where the bit timing the pattern was read with puts them. Else the
 //!    phase may have drifted within the frame (a false or missing start edge moved
 //!    the tracking), and a tail read a bit off is random content whose complement
-//!    pairs pass at 2^-n: the channel counts a check failure instead. The **reference** channel's 125 bit centres are gathered window by window
-//!    (32 samples) with a per-phase table and four multiplications ([`table`]);
+//!    pairs pass at 2^-n: the channel counts a check failure instead. The
+//!    **reference** channel's 125 bit centres are gathered two windows (of 32
+//!    samples) at a time with a per-phase table and four multiplications per window
+//!    ([`table`]);
 //!    every other aligned channel is checked **centre for centre** against the
 //!    reference's samples, shifted by the whole samples between their delays. A
 //!    channel that matches everywhere holds the reference's pattern; one that
@@ -97,15 +99,19 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 2 170 instructions per frame for one channel at 3x (2 310 at 4x), 3 480
-//! for vote3 and 4 500 for vote5 / super (5 channels, 3x; the timing confirmation
-//! costs about 110-140 of it), against 4 400 / 5 200 /
-//! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame that is
-//! roughly: gathering the reference ~1 000 (about 65 per 32-sample window), its
-//! decode 150, copying the rings ~3 per word and channel, and per other channel
-//! ~13 per window for the centre compare plus ~100 of bookkeeping. **Still over
-//! the 1 200-instruction budget of the worst path**; what is left is listed in the
-//! README ("Known limits").
+//! About 1 970 instructions per frame for one channel at 3x (1 980 at 4x), 3 110
+//! for vote3 and 3 920 for vote5 / super (5 channels, 3x), against 2 170 / 2 310 /
+//! 3 480 / 4 500 before the gather took two windows per step, and 4 400 / 5 200 /
+//! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame at 3x
+//! that is roughly: gathering the reference ~760 (about 44 per 32-sample window,
+//! 88 per two-window step; plus ~110 in the bench's window for table entries met
+//! for the first time, which a running line stops paying once its phases have all
+//! been seen), its decode 160, the start-edge confirmation ~80, the timing filter
+//! ~70, copying the rings ~5 per word and channel (~120 per channel), per other
+//! channel ~13 per window for the centre compare (~195), and ~600 of per-frame
+//! bookkeeping (`frame`, `next`, `evaluate`, `need`) of which ~120 per extra
+//! channel. **Still over the 1 200-instruction budget of the worst path**; what is
+//! left is listed in the README ("Known limits").
 
 pub mod channel;
 pub mod modes;

@@ -21,8 +21,11 @@
 //! loads two windows and appends up to 24 bits per step, halving the per-window
 //! bookkeeping. The second window's centres come from the slot's middle at the
 //! table's rate instead of the exact phase: they are off by at most 1/32 sample
-//! (the slot) plus 1/32 sample (the rate slack over 22 centres), within the 1/8
-//! sample a centre may move anyway (`gather_matches_bit_by_bit`).
+//! (the slot) plus 1/32 sample (the rate slack over the 23 centres after the
+//! first), plus, when the table's rate puts a centre just past a window's end that
+//! really lies just before it, that centre's overshoot (the next entry starts at
+//! phase 0): about 0.08 sample at most, well inside the 1/8 sample
+//! `gather_matches_bit_by_bit` allows around a rounding boundary.
 //!
 //! The entries are built lazily for the rate in use (a few dozen instructions each,
 //! at most one per step) and all dropped when the tracked rate moves enough to
@@ -35,9 +38,10 @@ use super::ring::FRAC;
 const SLOT_BITS: u32 = FRAC - 4;
 /// Slots: phases 0..r for r up to 4.2 samples per bit, plus slack.
 pub const SLOTS: usize = 72;
-/// Largest rate change (Q16 samples per bit) an entry tolerates: 22 centres (two
-/// windows) later it moves the last one by 1/32 sample.
-const RATE_SLACK: i32 = (1 << FRAC) / 32 / 22;
+/// Largest rate change (Q16 samples per bit) an entry tolerates: 23 centres after
+/// its first (the last of two windows of at most 12) it moves the last one by less
+/// than 1/32 sample.
+const RATE_SLACK: i32 = (1 << FRAC) / 32 / 24;
 /// Result bits that can hold a group's centres: every group's product puts its
 /// centres `k, k + 4, k + 8` at bits 31, 27, 23, and the four are then OR-ed in one
 /// bit apart (the M7 shifts an operand for free), so one mask constant serves all.
