@@ -34,20 +34,24 @@
 //! other lines.
 //!
 //! # Cost
-//! The pins are resolved once: a 32-entry table gives the BSRR data part for every
-//! pattern of one bit per line. Encoding takes six bit times at a time: each line's
-//! six bits are spread five places apart by a 64-entry table and the lines merged
-//! one place apart, so each bit time's pattern index is a 5-bit field; per bit the
-//! encoder extracts it, looks the word up and stores it with the CLK-reset word. The
-//! loop is compiled once per frame size (fully unrolled) and once for heads without
-//! U and W (which skips their two lines). No branches on the data. About 385
-//! instructions per 32-bit frame period on X Y Z and 530 on all five lines on the
-//! Cortex-M7 (`cargo xtask qemu`), some 100 of them checking and encoding the frames.
+//! The pins are resolved once into tables of the four words of two bit times (rise,
+//! fall, rise, fall) for every pattern of two bits on X, Y and Z (1 KiB), plus the
+//! data parts for U and W (128 bytes), shared with the XY2-100 transmitter
+//! (`xy2::tx::pairs`). Encoding takes four bit pairs at a time: each line's byte is
+//! spread by a 256-entry table so the lines' pattern indices sit side by side, then
+//! each pair is one field extract, one look-up and one 16-byte block copy (U and W:
+//! one more look-up and two ORs). The bit loop is compiled once per frame size (fully
+//! unrolled) and once for heads without U and W (which skips their two lines). No
+//! branches on the data. The frame checks and wire words inline into the caller
+//! (`bridge::head_out` builds its frames right there); only the fill is a call. About
+//! 160 instructions per 32-bit frame period on X Y Z and 225 on all five lines on the
+//! Cortex-M7 (`cargo xtask qemu`), some 70 of them checking and encoding the frames.
 
 use core::fmt;
 
 use super::frame::{encode, EncodeError, Frame, FrameSize};
 use crate::model::Axis;
+use crate::xy2::tx::lanes;
 
 /// Idle ticks a frame period needs at least: SYNC set-up before the first rising CLK
 /// edge and SYNC rising after the last falling one.
@@ -159,7 +163,8 @@ pub struct Transmitter {
     /// Set bits of every driven data pin.
     data_mask: u32,
     /// The rising-edge word (CLK set, data set for ones, reset for zeros) of every
-    /// pattern of one bit per line: bit 4 = X, bit 3 = Y, … bit 0 = W.
+    /// pattern of one bit per line: bit 0 = X, bit 1 = Y, … bit 4 = W. Its first 8
+    /// entries (U and W low) are the patterns of X, Y and Z alone.
     lut: [u32; 32],
     size: FrameSize,
     ticks: usize,
@@ -197,7 +202,7 @@ impl Transmitter {
                 .data
                 .iter()
                 .enumerate()
-                .filter(|(i, _)| v >> (4 - i) & 1 != 0)
+                .filter(|(i, _)| v >> i & 1 != 0)
                 .filter_map(|(_, p)| *p)
                 .fold(0, |m, p| m | set(p));
             *entry = set(pins.clk) | ones | (data_mask ^ ones) << 16;
@@ -251,6 +256,7 @@ impl Transmitter {
     /// Encodes one frame period into `out[..ticks_per_frame()]`: `frames` holds one
     /// frame per axis (indexed by [`Axis::index`]), present exactly for the driven
     /// lines, all of the configured size.
+    #[inline]
     pub fn encode(&self, frames: &[Option<Frame>; 5], out: &mut [u32]) -> Result<(), TxError> {
         // In axis order, so the first misfit is the error.
         let words = [
@@ -261,6 +267,14 @@ impl Transmitter {
             self.line_word(Axis::W, frames)?,
         ];
         let out = self.slot(out)?;
+        self.fill_words(words, out);
+        Ok(())
+    }
+
+    /// [`Self::fill`] for the configured size and lines. Out of line: the same for
+    /// every caller, while the frame checks inline.
+    #[inline(never)]
+    fn fill_words(&self, words: [u32; 5], out: &mut [u32]) {
         // One copy of the bit loop per frame size, so it unrolls with constant shifts,
         // and per "U or W driven", so the common X Y Z head skips two idle lines.
         match (self.size, self.wide) {
@@ -269,7 +283,6 @@ impl Transmitter {
             (FrameSize::Bits32, false) => self.fill::<32, false>(words, out),
             (FrameSize::Bits32, true) => self.fill::<32, true>(words, out),
         }
-        Ok(())
     }
 
     /// The wire word of `axis`' line (right-aligned); 0 if the line is not driven.
@@ -289,13 +302,8 @@ impl Transmitter {
 
     /// Writes the set-up word, the `2 * BITS` bit words of the right-aligned `words`,
     /// SYNC's rise and the idle tail; `out` is exactly one frame period (at least
-    /// `2 * BITS + 2` words). Without `WIDE` the U and W words are 0 (not driven).
-    ///
-    /// Six bit times at a time: each line's next six bits are spread five places apart
-    /// ([`SPREAD6`]) and the lines merged one place apart, so that bits `5k + 4 ..= 5k`
-    /// of the merged word are the pattern index (X in bit 4 … W in bit 0) of the
-    /// group's bit time `5 - k`; then each bit time is one field extract, one table
-    /// look-up and two stores.
+    /// `2 * BITS + 2` words). Without `WIDE` the U and W words are 0 (not driven) and
+    /// the shared three-line loop (`xy2::tx::lanes`) does X, Y and Z.
     #[inline(always)]
     fn fill<const BITS: usize, const WIDE: bool>(&self, words: [u32; 5], out: &mut [u32]) {
         // MSB-aligned: the first bit on the line in bit 31.
@@ -305,40 +313,56 @@ impl Transmitter {
             return;
         };
         let (pairs, _) = rest.as_chunks_mut::<2>();
-        let Some(pairs) = pairs.get_mut(..BITS) else {
+        let Some(pairs) = pairs.first_chunk_mut::<BITS>() else {
             return;
         };
-        let lut = &self.lut;
-        let mut t = 0;
-        for g in 0..BITS.div_ceil(6) {
-            // The group's six bits of a line: bits `31 - 6g ..= 26 - 6g`; the last group
-            // of a 32-bit frame has only two, shifted to the top of the field.
-            let spread = |w: u32| {
-                let six = if 6 * g <= 26 {
-                    w >> (26 - 6 * g)
-                } else {
-                    w << (6 * g - 26)
-                };
-                SPREAD6.get((six & 63) as usize).copied().unwrap_or(0)
-            };
-            let mut merged = spread(a) << 4 | spread(b) << 3 | spread(c) << 2;
-            if WIDE {
-                merged |= spread(d) << 1 | spread(e);
-            }
-            for k in (0..6).rev() {
-                if let Some(pair) = pairs.get_mut(t) {
-                    let rising = lut.get((merged >> (5 * k) & 31) as usize);
-                    *pair = [rising.copied().unwrap_or(0), clk_reset];
-                }
-                t += 1;
-            }
+        if WIDE {
+            wide(&self.lut, clk_reset, [a, b, c, d, e], pairs);
+        } else if let Some(patterns) = self.lut.first_chunk::<8>() {
+            lanes::fill(patterns, clk_reset, [a, b, c], pairs);
         }
         // Set-up word: SYNC falls with bit 0's data in place, CLK still low.
         let first = pairs.first().map_or(0, |p| p[0] & !set(self.clk));
         *setup = reset(self.sync) | clk_reset | first;
         if let Some((rise, idle)) = rest.get_mut(2 * BITS..).and_then(|t| t.split_first_mut()) {
             *rise = set(self.sync) | self.data_mask << 16;
-            idle.fill(0);
+            // Often nothing (the minimum idle): skip the call of a zero-length fill.
+            if !idle.is_empty() {
+                idle.fill(0);
+            }
+        }
+    }
+}
+
+/// The bit words of five lines (MSB-aligned `lines`), six bit times at a time: each
+/// line's next six bits are spread five places apart ([`SPREAD6`]) and the lines
+/// merged one place apart, so that bits `5k + 4 ..= 5k` of the merged word are the
+/// `lut` index (X in bit 0 … W in bit 4) of the group's bit time `5 - k`; then each
+/// bit time is one field extract, one table look-up and the store.
+#[inline(always)]
+fn wide<const BITS: usize>(
+    lut: &[u32; 32],
+    clk_reset: u32,
+    lines: [u32; 5],
+    pairs: &mut [[u32; 2]; BITS],
+) {
+    for (g, group) in pairs.chunks_mut(6).enumerate() {
+        // The group's six bits of a line: bits `31 - 6g ..= 26 - 6g`; the last group
+        // of a 32-bit frame has only two, shifted to the top of the field.
+        let spread = |w: u32| {
+            let six = match 26u32.checked_sub(6 * g as u32) {
+                Some(s) => w >> s,
+                None => w << (6 * g as u32 - 26),
+            };
+            SPREAD6.get((six & 63) as usize).copied().unwrap_or(0)
+        };
+        let merged = lines
+            .iter()
+            .enumerate()
+            .fold(0, |m, (i, &w)| m | spread(w) << i);
+        for (pair, k) in group.iter_mut().zip((0..6u32).rev()) {
+            let rising = lut.get((merged >> (5 * k) & 31) as usize);
+            *pair = [rising.copied().unwrap_or(0), clk_reset];
         }
     }
 }
