@@ -412,6 +412,7 @@ fn breaks_run(line: Line, channel_is_period: bool) -> bool {
 /// and returns the backchannel rate an XY3-100 command in it sets on the head.
 /// A free function over the fields it needs, so it can work on the pending frame in
 /// place while the rest of the bridge is borrowed too.
+#[inline(always)]
 fn finish_frame(
     f: &mut ForwardFrame,
     held: &mut [Option<Position>; 5],

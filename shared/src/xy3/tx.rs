@@ -147,17 +147,14 @@ const fn set(pin: u8) -> u32 {
     1 << pin
 }
 
-/// Reset bit of `pin` in the BSRR high half.
-const fn reset(pin: u8) -> u32 {
-    1 << (pin + 16)
-}
-
 /// The XY3-100 transmitter: precomputed masks for one pin map and frame size.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Transmitter {
-    clk: u8,
-    sync: u8,
+    /// Set bit of CLK (its reset bit is this shifted up 16).
+    clk: u32,
+    /// Set bit of SYNC.
+    sync: u32,
     /// Pin per axis, `None` if not driven.
     data: [Option<u8>; 5],
     /// Set bits of every driven data pin.
@@ -208,8 +205,8 @@ impl Transmitter {
             *entry = set(pins.clk) | ones | (data_mask ^ ones) << 16;
         }
         Ok(Transmitter {
-            clk: pins.clk,
-            sync: pins.sync,
+            clk: set(pins.clk),
+            sync: set(pins.sync),
             data: pins.data,
             data_mask,
             lut,
@@ -229,6 +226,11 @@ impl Transmitter {
         self.size
     }
 
+    /// Whether `axis`' data line has a pin.
+    pub fn drives(&self, axis: Axis) -> bool {
+        matches!(self.data.get(axis.index()), Some(Some(_)))
+    }
+
     /// The tick (DMA request) rate for `frame_rate_hz` frames per second.
     pub const fn tick_hz(&self, frame_rate_hz: u32) -> u64 {
         self.ticks as u64 * frame_rate_hz as u64
@@ -240,7 +242,7 @@ impl Transmitter {
         let words = self.slot(out)?;
         words.fill(0);
         if let Some(first) = words.first_mut() {
-            *first = set(self.sync) | reset(self.clk) | self.data_mask << 16;
+            *first = self.sync | (self.clk | self.data_mask) << 16;
         }
         Ok(())
     }
@@ -266,6 +268,17 @@ impl Transmitter {
             self.line_word(Axis::U, frames)?,
             self.line_word(Axis::W, frames)?,
         ];
+        let out = self.slot(out)?;
+        self.fill_words(words, out);
+        Ok(())
+    }
+
+    /// Writes one frame period of already encoded wire words (right-aligned, one per
+    /// axis indexed by [`Axis::index`], of the configured size, bits above it
+    /// ignored; words of lines without a pin are ignored) into
+    /// `out[..ticks_per_frame()]`, for a caller that built and checked the frames
+    /// itself (the bridge's head encoder).
+    pub fn encode_words(&self, words: [u32; 5], out: &mut [u32]) -> Result<(), TxError> {
         let out = self.slot(out)?;
         self.fill_words(words, out);
         Ok(())
@@ -308,7 +321,7 @@ impl Transmitter {
     fn fill<const BITS: usize, const WIDE: bool>(&self, words: [u32; 5], out: &mut [u32]) {
         // MSB-aligned: the first bit on the line in bit 31.
         let [a, b, c, d, e] = words.map(|w| w << (32 - BITS));
-        let clk_reset = reset(self.clk);
+        let clk_reset = self.clk << 16;
         let Some((setup, rest)) = out.split_first_mut() else {
             return;
         };
@@ -322,10 +335,10 @@ impl Transmitter {
             lanes::fill(patterns, clk_reset, [a, b, c], pairs);
         }
         // Set-up word: SYNC falls with bit 0's data in place, CLK still low.
-        let first = pairs.first().map_or(0, |p| p[0] & !set(self.clk));
-        *setup = reset(self.sync) | clk_reset | first;
+        let first = pairs.first().map_or(0, |p| p[0] & !self.clk);
+        *setup = self.sync << 16 | clk_reset | first;
         if let Some((rise, idle)) = rest.get_mut(2 * BITS..).and_then(|t| t.split_first_mut()) {
-            *rise = set(self.sync) | self.data_mask << 16;
+            *rise = self.sync | self.data_mask << 16;
             // Often nothing (the minimum idle): skip the call of a zero-length fill.
             if !idle.is_empty() {
                 idle.fill(0);
@@ -387,6 +400,11 @@ mod tests {
     use super::*;
     use proptest::prelude::*;
 
+    /// Reset bit of `pin` in the BSRR high half.
+    const fn reset(pin: u8) -> u32 {
+        1 << (pin + 16)
+    }
+
     /// The waveform table of the module docs, bit by bit, for `words` (right-aligned
     /// wire words, 0 for lines not driven).
     fn reference(tx: &Transmitter, pins: &OutPinMap, words: [u32; 5]) -> Vec<u32> {
@@ -445,6 +463,17 @@ mod tests {
             tx.encode(&frames, &mut out).unwrap();
             prop_assert_eq!(&out[..tx.ticks_per_frame()], &reference(&tx, &map, words)[..]);
             prop_assert!(out[tx.ticks_per_frame()..].iter().all(|&w| w == 0xDEAD_BEEF));
+            // The same words given directly, garbage on the lines without a pin.
+            let direct = core::array::from_fn(|i| if data[i].is_some() { words[i] } else { values[i] });
+            let mut out2 = vec![0x5555_AAAA; tx.ticks_per_frame() + 3];
+            tx.encode_words(direct, &mut out2).unwrap();
+            prop_assert_eq!(&out2[..tx.ticks_per_frame()], &out[..tx.ticks_per_frame()]);
+            prop_assert!(out2[tx.ticks_per_frame()..].iter().all(|&w| w == 0x5555_AAAA));
+            let short = tx.ticks_per_frame() - 1;
+            prop_assert_eq!(
+                tx.encode_words(direct, &mut out2[..short]),
+                Err(TxError::BufferTooShort { needed: tx.ticks_per_frame(), got: short })
+            );
         }
     }
 }
