@@ -21,18 +21,23 @@
 //! line explicitly, so a slot never depends on what the previous slot left behind.
 //!
 //! # Cost
-//! [`Transmitter::new`] resolves the pins into a table of the four words of two bit
-//! times for every pattern of two bits on X, Y and Z ([`pairs`]: CLK and SYNC set,
-//! each data pin set or reset, then the constant CLK-reset word), 1 KiB. Encoding
-//! takes four bit pairs of the three lines at a time: their pattern indices are
-//! gathered with one look-up per line in a 256-entry spreading table, then each pair
-//! is one field extract, one look-up and one 16-byte block copy into the slot. No
-//! branches on the data and no per-bit work; bit 20 additionally flips SYNC from set
-//! to reset. A missing Z line has no pin, so its bits select between identical
-//! entries. The frames are checked and encoded in [`Transmitter::write_frame`], which
-//! inlines into its caller so that frames built there never exist as enums; only
-//! the fill is a call. About 95 instructions per frame of three lines on the
-//! Cortex-M7 (`cargo xtask qemu`).
+//! [`Transmitter::new`] precomputes the whole first word of a bit for each of the 8
+//! patterns of one bit per data line (CLK and SYNC set, each data pin set or reset).
+//! The bit loop (`lanes`, shared with the XY3-100 transmitter) gathers the pattern
+//! indices of eight bit times of the three lines at once, one look-up per line in a
+//! 256-entry spreading table; per bit it then extracts the 3-bit field, looks the
+//! word up and stores it with the constant CLK-reset word: no branches on the data,
+//! four instructions per bit. Bit 20 additionally flips SYNC from set to reset. A
+//! missing Z line has no pin, so its bit selects between identical entries. The
+//! frame checks and wire words ([`Transmitter::write_frame`]) inline into the caller,
+//! so frames built there (`bridge::head_out`) are never packed into enums; only the
+//! fill is a call. About 200 instructions per frame of three lines on the Cortex-M7
+//! (`cargo xtask qemu`), some 125 of them filling the 40 words.
+//!
+//! The per-bit stores are the floor the compiler leaves: tables of two bit times per
+//! entry (four words copied as a block) came out no cheaper, since it splits such
+//! small copies into single-word loads and stores, and it rarely pairs a word with
+//! the constant CLK-reset word into one 64-bit store.
 //!
 //! # Errors
 //! A frame the link cannot carry ([`EncodeError`]) is never half-sent: its slot is filled

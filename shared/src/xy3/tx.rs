@@ -34,18 +34,20 @@
 //! other lines.
 //!
 //! # Cost
-//! The pins are resolved once into tables of the four words of two bit times (rise,
-//! fall, rise, fall) for every pattern of two bits on X, Y and Z (1 KiB), plus the
-//! data parts for U and W (128 bytes), shared with the XY2-100 transmitter
-//! (`xy2::tx::pairs`). Encoding takes four bit pairs at a time: each line's byte is
-//! spread by a 256-entry table so the lines' pattern indices sit side by side, then
-//! each pair is one field extract, one look-up and one 16-byte block copy (U and W:
-//! one more look-up and two ORs). The bit loop is compiled once per frame size (fully
-//! unrolled) and once for heads without U and W (which skips their two lines). No
-//! branches on the data. The frame checks and wire words inline into the caller
-//! (`bridge::head_out` builds its frames right there); only the fill is a call. About
-//! 160 instructions per 32-bit frame period on X Y Z and 225 on all five lines on the
-//! Cortex-M7 (`cargo xtask qemu`), some 70 of them checking and encoding the frames.
+//! The pins are resolved once: a 32-entry table gives the rising word (CLK set, data
+//! set or reset) for every pattern of one bit per line, and the CLK, SYNC and data
+//! masks are kept as BSRR bits. Heads without U and W use the XY2-100 transmitter's
+//! bit loop (`xy2::tx::lanes`): the first 8 entries are the X Y Z patterns, each
+//! line's next byte is spread by a 256-entry table so eight bit times' indices sit
+//! side by side, then per bit one field extract, one look-up and two stores. With U
+//! or W the five lines are merged six bit times at a time into 5-bit fields (a
+//! 64-entry spreading table). The loop is compiled once per frame size (fully
+//! unrolled) and per "U or W driven". No branches on the data. About 320
+//! instructions per 32-bit frame period on X Y Z (285 for 24-bit frames) and 440 on
+//! all five lines on the Cortex-M7 (`cargo xtask qemu`), some 125 of them checking
+//! and encoding the frames ([`Transmitter::encode`]); the bridge's head encoder
+//! builds and encodes its frames itself and only fills
+//! ([`Transmitter::encode_words`]).
 
 use core::fmt;
 
