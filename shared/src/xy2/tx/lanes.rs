@@ -69,6 +69,7 @@ pub(crate) fn fill<const BITS: usize>(
     lines: [u32; 3],
     out: &mut [[u32; 2]; BITS],
 ) {
+    const { assert!(BITS <= 32, "a line word holds at most 32 bits") };
     for (g, group) in out.chunks_mut(8).enumerate() {
         // Group g holds bits 31 - 8g ..= 24 - 8g of every line.
         let shift = 24u32.saturating_sub(8 * g as u32);
