@@ -46,14 +46,18 @@ fn known_over_budget(name: &str) -> Option<&'static str> {
 }
 
 /// One measured window.
-struct Window<'a> {
-    name: &'a str,
-    frames: u32,
-    count: u64,
+pub struct Window<'a> {
+    /// The workload's name.
+    pub name: &'a str,
+    /// Frames it processes (0 for the calibration window).
+    pub frames: u32,
+    /// Instructions the plugin counted in the window, window cost included.
+    pub count: u64,
 }
 
-/// Parses, prints the table and checks the budget.
-pub fn report(stdout: &str, stderr: &str) -> Result {
+/// Pairs the bench's names with the plugin's counts; also returns the window cost
+/// (the count of the empty first window, which is included in the returned list).
+pub fn windows<'a>(stdout: &'a str, stderr: &str) -> Result<(Vec<Window<'a>>, u64)> {
     let names: Vec<(&str, u32)> = stdout
         .lines()
         .filter_map(|l| l.strip_prefix("BENCH "))
@@ -103,6 +107,12 @@ pub fn report(stdout: &str, stderr: &str) -> Result {
         Some(w) if w.frames == 0 => w.count,
         _ => return Err("the first bench window must be the empty calibration window".into()),
     };
+    Ok((windows, overhead))
+}
+
+/// Parses, prints the table and checks the budget.
+pub fn report(stdout: &str, stderr: &str) -> Result {
+    let (windows, overhead) = windows(stdout, stderr)?;
 
     println!("\ninstructions per 10 us frame (QEMU mps2-an500 Cortex-M7, window cost {overhead} subtracted):");
     println!(

@@ -13,7 +13,8 @@
 //! 4. The firmware release build, then its flash and RAM use; the hardware-in-the-loop
 //!    test binary (`firmware/hil`, run on a board with `cargo test --test hil`).
 //! 5. `cm7` under QEMU (Cortex-M7): `shared`'s on-target tests, then the per-frame
-//!    instruction counts against the budget (`qemu.rs`, `bench.rs`).
+//!    instruction counts against the budget (`qemu.rs`, `bench.rs`), and a check that
+//!    the per-function profile (`cargo xtask profile`, `profile.rs`) adds up to them.
 //! 6. A few seconds of every cargo-fuzz target (`fuzz.rs`).
 
 use std::path::{Path, PathBuf};
@@ -24,6 +25,7 @@ mod bench;
 mod elf_size;
 mod fuzz;
 mod placement;
+mod profile;
 mod qemu;
 
 /// The host target the host crates are built for (the workspace default is the MCU).
@@ -47,12 +49,15 @@ fn main() -> ExitCode {
         Some("size") => firmware_size(),
         Some("qemu") => qemu::run(),
         Some("fuzz") => fuzz::run(),
+        Some("profile") => profile::run(&args[1..]),
         _ => {
-            eprintln!("usage: cargo xtask <test|size|qemu|fuzz>");
+            eprintln!("usage: cargo xtask <test|size|qemu|fuzz|profile>");
             eprintln!("  test  fmt, clippy (host + MCU), all tests, firmware size, QEMU, fuzz");
             eprintln!("  size  firmware release build and its flash/RAM use");
             eprintln!("  qemu  on-target tests and instruction counts on an emulated Cortex-M7");
             eprintln!("  fuzz  every cargo-fuzz target for a few seconds");
+            eprintln!("  profile <workload-substring> [--top N]");
+            eprintln!("        instructions per frame per function of one bench workload");
             return ExitCode::from(2);
         }
     };

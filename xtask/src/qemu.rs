@@ -14,18 +14,10 @@ const TIMEOUT: Duration = Duration::from_secs(60);
 /// `cm7` is its own workspace (see the root `Cargo.toml`), built in place.
 pub const CM7_MANIFEST: &str = "cm7/Cargo.toml";
 
-/// Builds `cm7` and the plugin, runs the tests and the bench, prints both results.
+/// Builds `cm7` and the plugin, runs the tests and the bench, prints both results, and
+/// checks that the bench's per-address profile adds up to its counts.
 pub fn run() -> Result {
-    cargo(&[
-        "build",
-        "--release",
-        "--target",
-        MCU,
-        "--manifest-path",
-        CM7_MANIFEST,
-    ])?;
-    let elves = root().join("cm7").join("target").join(MCU).join("release");
-    let plugin = build_plugin()?;
+    let (elves, plugin) = build()?;
 
     let tests = qemu(&elves.join("tests"), &[], "tests")?;
     print!("{}", tests.stdout);
@@ -43,9 +35,37 @@ pub fn run() -> Result {
     println!("on-target:{}", summary.trim_start_matches("cm7 tests:"));
 
     let elf = elves.join("bench");
-    let (start, end) = markers(&elf)?;
-    let arg = format!("{},start={start:#x},end={end:#x}", plugin.display());
-    let bench = qemu(&elf, &["-d", "plugin", "-plugin", &arg], "bench")?;
+    let bench = run_bench(&elf, &plugin)?;
+    crate::bench::report(&bench.stdout, &bench.stderr)?;
+    // The profile costs nothing extra (same run): prove `cargo xtask profile` adds up.
+    let checked = crate::profile::check_all(&elf, &bench.stdout, &bench.stderr)?;
+    println!("profile: per-function sums equal the bench counts in all {checked} windows");
+    Ok(())
+}
+
+/// Builds the `cm7` binaries and the plugin; returns the ELF directory and the plugin.
+pub fn build() -> Result<(PathBuf, PathBuf)> {
+    cargo(&[
+        "build",
+        "--release",
+        "--target",
+        MCU,
+        "--manifest-path",
+        CM7_MANIFEST,
+    ])?;
+    let elves = root().join("cm7").join("target").join(MCU).join("release");
+    Ok((elves, build_plugin()?))
+}
+
+/// Runs the bench ELF under the plugin with the per-address profile on; fails if the
+/// guest fails.
+pub fn run_bench(elf: &Path, plugin: &Path) -> Result<Run> {
+    let (start, end) = markers(elf)?;
+    let arg = format!(
+        "{},start={start:#x},end={end:#x},profile=on",
+        plugin.display()
+    );
+    let bench = qemu(elf, &["-d", "plugin", "-plugin", &arg], "bench")?;
     if !bench.ok {
         return Err(format!(
             "bench failed (QEMU: {}){}",
@@ -53,7 +73,7 @@ pub fn run() -> Result {
             tail(&bench.stderr)
         ));
     }
-    crate::bench::report(&bench.stdout, &bench.stderr)
+    Ok(bench)
 }
 
 /// `gcc -shared -fPIC` of `cm7/plugin/insn_count.c` into `target/cm7/`.
@@ -109,11 +129,13 @@ fn markers(elf: &Path) -> Result<(u64, u64)> {
 }
 
 /// What one QEMU run left behind.
-struct Run {
+pub struct Run {
     ok: bool,
     status: String,
-    stdout: String,
-    stderr: String,
+    /// The guest's semihosting output.
+    pub stdout: String,
+    /// QEMU's log, where the plugin prints.
+    pub stderr: String,
 }
 
 /// Runs `elf` on the emulated Cortex-M7 with a timeout; output goes through files so a
@@ -166,9 +188,12 @@ fn qemu(elf: &Path, extra: &[&str], name: &str) -> Result<Run> {
     })
 }
 
-/// The last lines of QEMU's stderr, for an error message.
+/// The last lines of QEMU's stderr, for an error message (without the profile's lines).
 fn tail(stderr: &str) -> String {
-    let lines: Vec<&str> = stderr.lines().collect();
+    let lines: Vec<&str> = stderr
+        .lines()
+        .filter(|l| !l.starts_with("insn_pc: "))
+        .collect();
     let from = lines.len().saturating_sub(15);
     if lines.is_empty() {
         String::new()
