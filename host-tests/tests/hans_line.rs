@@ -341,7 +341,7 @@ fn limits_rate_offset_and_jitter() {
         print!("{:>7.0}%", j * 100.0);
     }
     println!();
-    for fs in [37.5e6, 50e6] {
+    for fs in [37.5e6, 40e6, 50e6] {
         print!("{:>10.1} MHz", fs / 1e6);
         for (i, j) in jitters.into_iter().enumerate() {
             let (l, wrong) = loss(fs, 0.0, j, N, 200 + i as u64);
