@@ -12,11 +12,14 @@
 //! - [`xy3`]: XY3-100 forward frames, commands and the RS485 backchannel.
 //! - [`hans`]: the HANS-100 protocol.
 //! - [`bridge`]: the bridge engine (configuration, translation, supervision, status).
+//! - [`governor`]: the load governor that keeps a decoder above thread mode within
+//!   its share of the core.
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
 
 pub mod bridge;
+pub mod governor;
 pub mod hans;
 pub mod model;
 pub mod xy2;
