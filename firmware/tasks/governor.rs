@@ -40,12 +40,15 @@ pub const SHARE_PERMILLE: u16 = 900;
 /// batches make the busy time of a half jitter); halves up to two half periods old
 /// (410 us: a half is decoded at most that long after it was complete, and with
 /// `HANS_INPUT`'s two slots the oldest is dropped here before the input task has to
-/// drop the newest).
+/// drop the newest); the head STATUS (optional work) refused for lack of credit for
+/// at most eight half periods (1.6 ms, what the thread-mode decoder of every 8th half
+/// guaranteed before), then decoded at the input's expense.
 const LIMITS: Limits = Limits {
     half: HALF_TICKS,
     share_permille: SHARE_PERMILLE,
     burst: HALF_TICKS / 2,
     max_age: 2 * HALF_TICKS,
+    optional_gap: 8 * HALF_TICKS,
 };
 
 /// The governor with [`LIMITS`], checked at compile time (a refused limit fails the

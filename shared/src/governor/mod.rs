@@ -21,8 +21,10 @@
 //! * otherwise [`Step::Decode`].
 //!
 //! Work of [`Class::Optional`] (a status stream that is re-read every half anyway)
-//! is never paused for: it is dropped unless the credit covers what its last run cost
-//! it, so it only uses time the essential decoder leaves over.
+//! is dropped unless the credit covers what its last run cost, so it normally only
+//! uses time the essential decoder leaves over; but once it has been refused for
+//! `optional_gap`, its next half is admitted like essential work (paused for, then
+//! decoded), so an overloaded essential decoder cannot silence it for good.
 //!
 //! **Guarantee.** The credit only decreases while the decoder is busy, a decode only
 //! starts with credit >= 0, and a decode of length `b` costs `(1 - share) * b` of
@@ -49,6 +51,9 @@ pub struct Limits {
     /// Oldest a half may be (time since it was complete) when its decode starts;
     /// an older one is dropped as stale. At least one half period.
     pub max_age: u64,
+    /// Longest optional work may go without a decode for lack of credit; then its
+    /// next half is admitted like essential work. At least one half period.
+    pub optional_gap: u64,
 }
 
 /// Why [`Limits`] were refused.
@@ -69,6 +74,9 @@ pub enum LimitsError {
     /// The age limit is shorter than a half period: a decoder only a little behind
     /// would drop halves.
     MaxAge,
+    /// The optional gap is shorter than a half period: optional work would run as
+    /// essential work every time.
+    OptionalGap,
 }
 
 impl fmt::Display for LimitsError {
@@ -87,6 +95,10 @@ impl fmt::Display for LimitsError {
                 f,
                 "decoder governor: the age limit is shorter than the half period"
             ),
+            Self::OptionalGap => write!(
+                f,
+                "decoder governor: the optional gap is shorter than the half period"
+            ),
         }
     }
 }
@@ -98,8 +110,8 @@ pub enum Class {
     /// Input the bridge forwards (the controller's stream): paused for when over
     /// budget, dropped only when stale.
     Essential,
-    /// Work that only refreshes a state (the head's STATUS): never paused for,
-    /// dropped whenever the credit does not cover its last cost.
+    /// Work that only refreshes a state (the head's STATUS): dropped whenever the
+    /// credit does not cover its last cost, unless it has waited `optional_gap`.
     Optional,
 }
 
@@ -133,6 +145,8 @@ pub struct Governor {
     last: Option<u64>,
     /// Credit the last optional decode cost net, in thousandths of a time unit.
     optional_cost: i64,
+    /// When optional work was last decoded (or first asked about).
+    optional_since: Option<u64>,
 }
 
 /// `x` as `i64`, saturating (times are far below `i64::MAX`; garbage must not wrap).
@@ -158,6 +172,9 @@ impl Governor {
         if limits.max_age < limits.half {
             return Err(LimitsError::MaxAge);
         }
+        if limits.optional_gap < limits.half {
+            return Err(LimitsError::OptionalGap);
+        }
         // `burst <= half`, and `half` is a time: far below `i64::MAX / SCALE` for
         // any real clock; saturate anyway.
         let cap = if limits.burst > (i64::MAX / SCALE) as u64 {
@@ -170,6 +187,7 @@ impl Governor {
             credit: cap,
             last: None,
             optional_cost: 0,
+            optional_since: None,
         })
     }
 
@@ -202,13 +220,18 @@ impl Governor {
         self.accrue(now);
         let stale = now.saturating_sub(ready) > self.limits.max_age;
         if class == Class::Optional {
-            // Never pause for optional work, and never let it take the credit the
-            // essential decoder would need: its last cost must fit.
-            return if self.credit >= self.optional_cost && !stale {
-                Step::Decode
-            } else {
-                Step::Drop
-            };
+            let since = *self.optional_since.get_or_insert(now);
+            let starved = now.saturating_sub(since) >= self.limits.optional_gap;
+            // Unless starved, optional work is never paused for and never takes the
+            // credit the essential decoder would need: its last cost must fit.
+            if !starved {
+                return if self.credit >= self.optional_cost && !stale {
+                    self.optional_since = Some(now);
+                    Step::Decode
+                } else {
+                    Step::Drop
+                };
+            }
         }
         if self.credit < 0 {
             let share = i64::from(self.limits.share_permille);
@@ -221,6 +244,9 @@ impl Governor {
         }
         if stale {
             return Step::Drop;
+        }
+        if class == Class::Optional {
+            self.optional_since = Some(now);
         }
         Step::Decode
     }

@@ -13,13 +13,15 @@ use std::vec::Vec;
 const T: u64 = 205;
 
 /// The firmware's limits (`firmware/tasks/governor.rs`): 90 %, burst half a half
-/// period, halves up to two half periods old.
+/// period, halves up to two half periods old, optional work refused for at most
+/// eight half periods.
 fn limits() -> Limits {
     Limits {
         half: T,
         share_permille: 900,
         burst: T / 2,
         max_age: 2 * T,
+        optional_gap: 8 * T,
     }
 }
 
@@ -185,6 +187,10 @@ fn limits_are_checked() {
     );
     assert_eq!(bad(|l| l.burst = T + 1), Some(LimitsError::Burst));
     assert_eq!(bad(|l| l.max_age = T - 1), Some(LimitsError::MaxAge));
+    assert_eq!(
+        bad(|l| l.optional_gap = T - 1),
+        Some(LimitsError::OptionalGap)
+    );
     let text = std::format!("{}", LimitsError::Share { permille: 1000 });
     assert!(text.contains("1000 per mille"), "{text}");
     assert!(std::format!("{}", LimitsError::MaxAge).contains("age limit"));
@@ -357,12 +363,140 @@ fn garbage_times_neither_panic_nor_earn_credit() {
         half: u64::MAX,
         burst: u64::MAX,
         max_age: u64::MAX,
+        optional_gap: u64::MAX,
         ..limits()
     })
     .expect("valid");
     assert_eq!(h.next(u64::MAX, Class::Optional, 0), Step::Decode);
     h.spent(Class::Optional, u64::MAX);
     let _ = h.next(0, Class::Essential, u64::MAX);
+}
+
+#[test]
+fn starved_optional_work_is_admitted_like_essential_work() {
+    let l = limits();
+    let mut g = Governor::new(l).expect("valid");
+    // Essential work runs the credit deep into debt.
+    assert_eq!(g.next(0, Class::Essential, 0), Step::Decode);
+    g.spent(Class::Essential, 20 * T);
+    // Optional work is refused (first asked at 3T) until it has waited the gap...
+    assert_eq!(g.next(3 * T, Class::Optional, 3 * T), Step::Drop);
+    assert_eq!(g.next(11 * T - 1, Class::Optional, 11 * T - 1), Step::Drop);
+    // ...then it is paused for like essential work, never dropped for credit.
+    let Step::Pause { until } = g.next(11 * T, Class::Optional, 11 * T) else {
+        panic!("a starved optional half in debt must be paused for");
+    };
+    // The half at hand went stale in the long pause; a fresh one is decoded.
+    assert_eq!(g.next(until, Class::Optional, 11 * T), Step::Drop);
+    assert_eq!(g.next(until, Class::Optional, until), Step::Decode);
+    g.spent(Class::Optional, T);
+    // Decoded: the gap starts again.
+    assert_eq!(g.next(until + T, Class::Optional, until + T), Step::Drop);
+}
+
+/// Two streams in one executor, as in the firmware: the controller input
+/// (essential, queue of 2) and the head STATUS (optional, queue of 1), halves every
+/// `T` (STATUS half a period later); when both have a half waiting the decoder takes
+/// them in turn (the firmware's input decoder yields after every half, so the
+/// executor runs the STATUS task in between). Returns the busy intervals and the
+/// start times of the optional decodes.
+fn run_two(
+    limits: Limits,
+    halves: u64,
+    essential: u64,
+    optional: u64,
+) -> (Vec<(u64, u64)>, Vec<u64>) {
+    let mut gov = Governor::new(limits).expect("valid limits");
+    let mut busy = Vec::new();
+    let mut optional_starts = Vec::new();
+    let (mut qe, mut qo): (VecDeque<u64>, VecDeque<u64>) = (VecDeque::new(), VecDeque::new());
+    let (mut next_e, mut next_o) = (T, T / 2);
+    let last = halves * T;
+    let mut t = 0u64;
+    let mut last_was_e = false;
+    let fill = |t: u64, q: &mut VecDeque<u64>, next: &mut u64, depth: usize| {
+        while *next <= t && *next <= last {
+            if q.len() < depth {
+                q.push_back(*next);
+            }
+            *next += T;
+        }
+    };
+    loop {
+        fill(t, &mut qe, &mut next_e, 2);
+        fill(t, &mut qo, &mut next_o, 1);
+        let take_e = match (qe.is_empty(), qo.is_empty()) {
+            (true, true) => {
+                if next_e > last && next_o > last {
+                    break;
+                }
+                t = next_e.min(next_o);
+                continue;
+            }
+            (false, false) => !last_was_e,
+            (e_empty, _) => !e_empty,
+        };
+        last_was_e = take_e;
+        let (class, ready, cost) = if take_e {
+            (Class::Essential, qe.pop_front().unwrap_or(0), essential)
+        } else {
+            (Class::Optional, qo.pop_front().unwrap_or(0), optional)
+        };
+        loop {
+            match gov.next(t, class, ready) {
+                Step::Pause { until } => {
+                    t = until;
+                    fill(t, &mut qe, &mut next_e, 2);
+                    fill(t, &mut qo, &mut next_o, 1);
+                }
+                Step::Drop => break,
+                Step::Decode => {
+                    if class == Class::Optional {
+                        optional_starts.push(t);
+                    }
+                    busy.push((t, t + cost));
+                    t += cost;
+                    gov.spent(class, cost);
+                    break;
+                }
+            }
+        }
+    }
+    (busy, optional_starts)
+}
+
+#[test]
+fn overloaded_input_and_status_share_the_core_and_status_is_not_silenced() {
+    let l = limits();
+    // Input at 130 % of a half, STATUS at 50 %: far over the share together.
+    let (busy, status) = run_two(l, 5_000, T * 13 / 10, T / 2);
+    for halves in [4, 16, 256] {
+        let w = halves * T;
+        assert!(max_busy_in_window(&busy, w) <= bound(l, w, T * 13 / 10));
+    }
+    // STATUS still gets decoded, at least once per gap (plus the pause and the
+    // decode in progress when the gap ends).
+    assert!(status.len() > 100, "{}", status.len());
+    let longest = status.windows(2).map(|p| p[1] - p[0]).max().unwrap_or(0);
+    assert!(
+        longest <= l.optional_gap + 3 * T,
+        "STATUS silent for {longest}"
+    );
+    // Without the gap rule the same load silences it: the check above can fail.
+    let never = Limits {
+        optional_gap: u64::MAX,
+        ..l
+    };
+    let (_, starved) = run_two(never, 5_000, T * 13 / 10, T / 2);
+    assert!(starved.len() < status.len() / 10, "{}", starved.len());
+}
+
+#[test]
+fn input_and_status_under_budget_are_both_decoded_in_full() {
+    // 50 % + 35 %: under the 90 % share together.
+    let (busy, status) = run_two(limits(), 5_000, T / 2, T * 35 / 100);
+    assert_eq!(status.len(), 5_000);
+    assert_eq!(busy.len(), 10_000);
 }
 
 proptest! {
