@@ -254,7 +254,7 @@ pub struct Stats {
     pub status_decoded: AtomicU32,
     /// HANS STATUS halves the decode governor dropped (no spare credit, or stale).
     pub status_drops: AtomicU32,
-    /// Pauses the decode governor imposed on the controller input decoder.
+    /// Pauses the decode governor imposed on the decoders.
     pub decode_pauses: AtomicU32,
     /// Time spent in those pauses, microseconds.
     pub decode_paused_us: AtomicU32,
