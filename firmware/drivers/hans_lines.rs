@@ -5,17 +5,22 @@
 //!
 //! `shared::hans::rx::HansRx` needs word `i` of every ring to cover the same 16
 //! instants. Each SPI counts the edges it has seen since it was enabled, so they all
-//! have to be enabled before the first edge: [`HansLines::start`] holds fs low,
+//! have to be enabled before the first edge: [`HansInput::start`] holds fs low,
 //! starts every used channel's SPI and DMA ([`SpiSlaveRx`]: software slave select,
 //! free-running stream, SCK pulled down while undriven), then lets fs run. An
 //! overrun on any channel breaks that alignment for good, so the caller drops the
-//! whole set and starts a new one (a new session).
+//! whole set and starts a new one (a new session) from the same [`HansInput`].
+//!
+//! The firmware's `hans_in` task and the HIL test `hans_controller_loopback` both
+//! take their rings from [`hans_rings!`] and start every session through
+//! [`HansInput`], so the test runs the task's start sequence, not a copy of it.
 //!
 //! The pins: CH3..CH5 on the X, Y, Z MOSI pins the XY3-100 input uses too (pairs 3..5),
 //! CH1 on PD7 (SPI1), CH2 on PC1 (SPI2); the SPIs, SCK pins and DMA1 streams 0..4 are
 //! the XY3-100 input's ([`Xy3InRes`]): one controller protocol runs at a time.
 
 use embassy_stm32::dma::InterruptHandler;
+use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::interrupt::typelevel::{
     Binding, DMA1_STREAM0, DMA1_STREAM1, DMA1_STREAM2, DMA1_STREAM3, DMA1_STREAM4,
 };
@@ -29,6 +34,71 @@ use crate::board::{HansInRes, SpiLineRes, Xy3InRes};
 
 /// HANS-100 data channels.
 pub const CHANNELS: usize = 5;
+
+/// Zeroes five fresh `u16` DMA rings of `$n` words in SRAM1 (which DMA1 reaches),
+/// one per channel, for [`HansInput::new`](crate::drivers::hans_lines::HansInput::new):
+/// `[&'static mut [u16; $n]; 5]`. Its caller must fit one read of every channel in
+/// a ring ([`HansLines::read`](crate::drivers::hans_lines::HansLines::read) reads the
+/// channels one after the other while all of them fill).
+///
+/// Same rule as [`dma_ring!`](crate::dma_ring): expand it only in code that runs at
+/// most once per boot.
+#[macro_export]
+macro_rules! hans_rings {
+    ($n:expr) => {
+        [
+            $crate::dma_ring!(".sram1", u16, $n),
+            $crate::dma_ring!(".sram1", u16, $n),
+            $crate::dma_ring!(".sram1", u16, $n),
+            $crate::dma_ring!(".sram1", u16, $n),
+            $crate::dma_ring!(".sram1", u16, $n),
+        ]
+    };
+}
+
+/// What the HANS-100 controller input keeps across sessions: the lines' resources and
+/// one ring per channel. Each [`HansInput::start`] starts a new aligned set on them.
+pub struct HansInput<'d> {
+    x: Xy3InRes,
+    h: HansInRes,
+    rings: [&'d mut [u16]; CHANNELS],
+}
+
+impl<'d> HansInput<'d> {
+    /// Takes the lines and `rings` (indexed by channel number - 1, from
+    /// [`hans_rings!`]) and turns the XY3-100 clock buffer off for good: fs drives
+    /// the SCK bus now, and the buffer would drive it too (README "Wiring / pin
+    /// map", pair 2). The `Output` is forgotten on purpose: dropping it would
+    /// turn the pin back into an input and let OE# float.
+    pub fn new<const N: usize>(
+        x: Xy3InRes,
+        h: HansInRes,
+        rings: [&'d mut [u16; N]; CHANNELS],
+    ) -> Self {
+        let mut x = x;
+        core::mem::forget(Output::new(
+            x.sck_buffer_oe.reborrow(),
+            Level::High,
+            Speed::Low,
+        ));
+        let rings = rings.map(|r| -> &'d mut [u16] { r });
+        HansInput { x, h, rings }
+    }
+
+    /// Starts the channels in `used` (bit n-1 for channel n, as
+    /// `shared::hans::rx::Mode::channel_mask`) with `fs` held low, then lets `fs`
+    /// run, so every ring starts at the same clock edge. Channels not used stay off.
+    /// Dropping the returned set stops it; the next call starts a new session.
+    pub fn start(
+        &mut self,
+        used: u8,
+        irqs: impl LineIrqs + 'd,
+        fs: &mut Fs,
+    ) -> Result<HansLines<'_>, RxError> {
+        let rings = self.rings.each_mut().map(|r| &mut **r);
+        HansLines::start(&mut self.x, &mut self.h, used, rings, irqs, fs)
+    }
+}
 
 /// The DMA interrupt bindings the five channels need (the firmware's and the HIL
 /// tests' `bind_interrupts!` structs both have them).
@@ -95,11 +165,9 @@ where
 }
 
 impl<'d> HansLines<'d> {
-    /// Starts the channels in `used` (bit n-1 for channel n, as
-    /// `shared::hans::rx::Mode::channel_mask`) into `rings` (indexed by channel
-    /// number - 1; all the same length) with `fs` held low, then lets `fs` run, so
-    /// every ring starts at the same clock edge. Channels not used stay off.
-    pub fn start(
+    /// [`HansInput::start`] on `x`, `h` and `rings` (indexed by channel number - 1;
+    /// all the same length).
+    fn start(
         x: &'d mut Xy3InRes,
         h: &'d mut HansInRes,
         used: u8,

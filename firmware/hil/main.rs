@@ -34,11 +34,12 @@ mod tests {
     use shared::hans::frame::{write_slot, Frame, RING_BYTES};
     use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
     use shared::hans::tx::Transmitter;
+    use shared::head_port;
     use shared::model::Alarms;
     use shared::model::FaultKind;
     use shared::xy2::rx::{Event as Xy2Event, PinMap, Receiver as Xy2Receiver};
     use shared::xy2::status_line::{StatusOut as WordOut, StatusWordConfig, StatusWordReceiver};
-    use shared::xy2::tx::{OutPinMap, Transmitter as Xy2Tx};
+    use shared::xy2::tx::Transmitter as Xy2Tx;
     use shared::xy2::{
         encode as xy2_encode, Frame as Frame2, Health, LinkConfig, Mode, Parity, StatusError,
         StatusLevel, StatusWord,
@@ -48,9 +49,8 @@ mod tests {
     use shared::xy3::{Frame as Frame3, FrameSize};
     use xy_bridge::board::HANS_FS_HZ;
     use xy_bridge::board::{self, Board};
-    use xy_bridge::dma_ring;
     use xy_bridge::drivers::backchannel;
-    use xy_bridge::drivers::hans_lines::HansLines;
+    use xy_bridge::drivers::hans_lines::HansInput;
     use xy_bridge::drivers::oversample_clock;
     use xy_bridge::drivers::serial_tx::SerialTx;
     use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
@@ -59,6 +59,7 @@ mod tests {
     use xy_bridge::drivers::sync_marks::{SyncEdgeHandler, SyncMarks};
     use xy_bridge::drivers::wave_out::WaveOut;
     use xy_bridge::drivers::xy2_sampler::Xy2Sampler;
+    use xy_bridge::{dma_ring, hans_rings};
 
     use super::Prng;
 
@@ -189,7 +190,7 @@ mod tests {
     /// their SYNC pattern and X words (the gaps invisible to our receiver).
     #[test]
     async fn xy2_slaved_idle_slots_loopback(board: Board) {
-        use shared::xy2::tx::{OutPinMap, Transmitter, TxFrame};
+        use shared::xy2::tx::{Transmitter, TxFrame};
         use shared::xy2::{encode, Frame as Frame2};
         const TICKS: usize = 40;
         const SLOTS: usize = 25;
@@ -204,15 +205,8 @@ mod tests {
         let ring = dma_ring!(".sram2", u32, 2 * TICKS * SLOTS);
         let mut out =
             WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
-        let pins = OutPinMap {
-            clk: P1 as u8,
-            sync: P2 as u8,
-            x: P3 as u8,
-            y: P4 as u8,
-            z: None,
-        };
         let link = LinkConfig::default();
-        let tx = Transmitter::new(pins, TICKS, link).unwrap();
+        let tx = Transmitter::new(head_port::xy2_pins(false), TICKS, link).unwrap();
         out.start();
 
         let mut prng = Prng(0x0BAD_CAFE);
@@ -254,6 +248,72 @@ mod tests {
         }
     }
 
+    /// Ticks per frame slot (XY2-100 at 100 kHz on the 4 MHz tick) and slots per
+    /// batch of the XY2-100 STATUS word tests.
+    const TPF: usize = 40;
+    const FRAMES: usize = 25;
+
+    /// What the XY2-100 STATUS word tests run on (jumper PD3 -> PG9): `WaveOut` on
+    /// TIM8 plays CLK on PD0 and a head's STATUS line on PD3, its CC1 sampler takes
+    /// port G once per tick; the link, and the firmware's receiver geometry (20
+    /// samples per 40-tick frame, offset 1).
+    struct StatusWordBench {
+        out: WaveOut<'static, peripherals::TIM8>,
+        link: LinkConfig,
+        geometry: StatusWordConfig,
+        /// CLK and STATUS out, STATUS in: configured while the bench lives.
+        _pins: (Output<'static>, Output<'static>, Input<'static>),
+    }
+
+    impl StatusWordBench {
+        /// Configures the pins and starts the output with its status sampler (once
+        /// per test: the rings are `dma_ring!`s).
+        fn start(board: Board) -> Self {
+            let r = board.res;
+            let w = r.wave;
+            let clk = Output::new(w.pins.p1, Level::Low, Speed::VeryHigh);
+            let status = Output::new(w.pins.p4, Level::Low, Speed::VeryHigh);
+            let status_in = Input::new(r.head_status, Pull::None);
+            let ring = dma_ring!(".sram2", u32, 2 * FRAMES * TPF);
+            let mut out =
+                WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
+            let status_ring = dma_ring!(".sram2", u16, 4 * FRAMES * TPF);
+            out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring)
+                .unwrap();
+            out.start();
+            let link = LinkConfig {
+                mode: Mode::Standard16,
+                parity: Parity::WholeFrame,
+            };
+            let geometry = StatusWordConfig {
+                pin: 9,
+                samples_per_period: (TPF / 2) as u16,
+                offset: 1,
+                link,
+            };
+            StatusWordBench {
+                out,
+                link,
+                geometry,
+                _pins: (clk, status, status_in),
+            }
+        }
+    }
+
+    /// Fills `batch` ([`FRAMES`] slots) with frames `first..`: a CLK pulse on P1 per
+    /// bit and the head's STATUS frame `frame(k)` on P4, each bit set at a CLK
+    /// falling edge; `None` is an idle slot (no clock, STATUS low).
+    fn status_word_batch(batch: &mut [u32], first: usize, frame: impl Fn(usize) -> Option<u32>) {
+        for (f, slot) in batch.chunks_exact_mut(TPF).enumerate() {
+            let bits = frame(first + f);
+            for (i, pair) in slot.chunks_exact_mut(2).enumerate() {
+                pair[0] = level(P1, bits.is_some());
+                let status = bits.map_or(0, |v| level(P4, v >> (19 - i) & 1 == 1));
+                pair[1] = level(P1, false) | status;
+            }
+        }
+    }
+
     /// XY2-100 STATUS word, head side. Jumper: PD3 -> PG9 (the head's STATUS input).
     /// PD3 plays a head that shifts a status frame out on our clock, changing its
     /// line on every CLK falling edge (PD0, no jumper needed); the TIM8 CC1 sampler's
@@ -262,33 +322,14 @@ mod tests {
     /// offset 1), and the one frame sent with a flipped parity bit must be refused.
     #[test]
     async fn xy2_status_word_loopback(board: Board) {
-        const TPF: usize = 40;
-        const FRAMES: usize = 25;
         const BATCHES: usize = 4;
         const BAD: usize = 37;
-        let r = board.res;
-        let w = r.wave;
-        let _clk = Output::new(w.pins.p1, Level::Low, Speed::VeryHigh);
-        let _status = Output::new(w.pins.p4, Level::Low, Speed::VeryHigh);
-        let _status_in = Input::new(r.head_status, Pull::None);
-        let ring = dma_ring!(".sram2", u32, 2 * FRAMES * TPF);
-        let mut out =
-            WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
-        let status_ring = dma_ring!(".sram2", u16, 4 * FRAMES * TPF);
-        out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring)
-            .unwrap();
-        out.start();
-
-        let link = LinkConfig {
-            mode: Mode::Standard16,
-            parity: Parity::WholeFrame,
-        };
-        let geometry = StatusWordConfig {
-            pin: 9,
-            samples_per_period: (TPF / 2) as u16,
-            offset: 1,
+        let StatusWordBench {
+            mut out,
             link,
-        };
+            geometry,
+            _pins,
+        } = StatusWordBench::start(board);
         let mut rx = StatusWordReceiver::new(geometry).unwrap();
         let word = |k: usize| StatusWord::from_alarms(Alarms((k as u32).wrapping_mul(7) & 0xF));
         let frame = |k: usize| word(k).to_frame(&link) ^ u32::from(k == BAD);
@@ -299,15 +340,9 @@ mod tests {
         // One batch more than the frames: its idle slots (no clock, STATUS held) let
         // the last frame's last bit be sampled.
         for b in 0..=BATCHES {
-            for (f, slot) in batch.chunks_exact_mut(TPF).enumerate() {
-                let k = b * FRAMES + f;
-                let bits = (k < BATCHES * FRAMES).then(|| frame(k));
-                for (i, pair) in slot.chunks_exact_mut(2).enumerate() {
-                    pair[0] = level(P1, bits.is_some());
-                    let status = bits.map_or(0, |v| level(P4, v >> (19 - i) & 1 == 1));
-                    pair[1] = level(P1, false) | status;
-                }
-            }
+            status_word_batch(&mut batch, b * FRAMES, |k| {
+                (k < BATCHES * FRAMES).then(|| frame(k))
+            });
             out.write_half(&batch).await.unwrap();
             let read = out.read_status(&mut samples).unwrap();
             assert!(!read.restart, "realigned without an underrun");
@@ -341,34 +376,15 @@ mod tests {
     /// is refused. The frames before the underrun must have come back too.
     #[test]
     async fn xy2_status_realign_after_underrun(board: Board) {
-        const TPF: usize = 40;
-        const FRAMES: usize = 25;
         const BATCHES: usize = 8;
         const STALL_BEFORE: usize = 2;
         const BAD: usize = 5 * FRAMES + 7;
-        let r = board.res;
-        let w = r.wave;
-        let _clk = Output::new(w.pins.p1, Level::Low, Speed::VeryHigh);
-        let _status = Output::new(w.pins.p4, Level::Low, Speed::VeryHigh);
-        let _status_in = Input::new(r.head_status, Pull::None);
-        let ring = dma_ring!(".sram2", u32, 2 * FRAMES * TPF);
-        let mut out =
-            WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, ALL_LOW, 4_000_000).unwrap();
-        let status_ring = dma_ring!(".sram2", u16, 4 * FRAMES * TPF);
-        out.start_status_sampler(w.status_dma, Irqs, pac::GPIOG, status_ring)
-            .unwrap();
-        out.start();
-
-        let link = LinkConfig {
-            mode: Mode::Standard16,
-            parity: Parity::WholeFrame,
-        };
-        let geometry = StatusWordConfig {
-            pin: 9,
-            samples_per_period: (TPF / 2) as u16,
-            offset: 1,
+        let StatusWordBench {
+            mut out,
             link,
-        };
+            geometry,
+            _pins,
+        } = StatusWordBench::start(board);
         let mut rx = StatusWordReceiver::new(geometry).unwrap();
         let word = |k: usize| StatusWord::from_alarms(Alarms((k as u32).wrapping_mul(5) & 0xF));
         let frame = |k: usize| word(k).to_frame(&link) ^ u32::from(k == BAD);
@@ -380,15 +396,7 @@ mod tests {
         let mut samples = [0u16; 4 * FRAMES * TPF];
         let mut tick = 0;
         for b in 0..=BATCHES {
-            for (f, slot) in batch.chunks_exact_mut(TPF).enumerate() {
-                let k = b * FRAMES + f;
-                let bits = (b < BATCHES).then(|| frame(k));
-                for (i, pair) in slot.chunks_exact_mut(2).enumerate() {
-                    pair[0] = level(P1, bits.is_some());
-                    let status = bits.map_or(0, |v| level(P4, v >> (19 - i) & 1 == 1));
-                    pair[1] = level(P1, false) | status;
-                }
-            }
+            status_word_batch(&mut batch, b * FRAMES, |k| (b < BATCHES).then(|| frame(k)));
             if b == STALL_BEFORE {
                 // Let the written batches play and read their words (the status ring
                 // holds 1 ms), then stall long enough for both rings to run over.
@@ -452,21 +460,18 @@ mod tests {
         }
     }
 
-    /// The firmware's XY2 head geometry: pins as `tasks/encode.rs` (CLK PD0, SYNC
-    /// PD1, X PD2, Y PD3), 40 ticks per frame at 4 MHz, 16-bit whole-frame parity.
+    /// The firmware's XY2 head geometry: its pins (`shared::head_port`: CLK PD0,
+    /// SYNC PD1, X PD2, Y PD3; no Z), 40 ticks per frame at 4 MHz, 16-bit
+    /// whole-frame parity.
     fn xy2_head_tx() -> (Xy2Tx, LinkConfig) {
         let link = LinkConfig {
             mode: Mode::Standard16,
             parity: Parity::WholeFrame,
         };
-        let pins = OutPinMap {
-            clk: P1 as u8,
-            sync: P2 as u8,
-            x: P3 as u8,
-            y: P4 as u8,
-            z: None,
-        };
-        (Xy2Tx::new(pins, 40, link).unwrap(), link)
+        (
+            Xy2Tx::new(head_port::xy2_pins(false), 40, link).unwrap(),
+            link,
+        )
     }
 
     /// Position of frame `k` on axis `axis` (any 16-bit value will do).
@@ -1227,8 +1232,8 @@ mod tests {
     /// HANS-100 head output -> HANS-100 controller input, all five channels. Jumpers:
     /// PE6 (SAI1_SD_A) -> PD7 (CH1), PC1 (CH2), PC12 (CH3), PE14 (CH4), PF9 (CH5);
     /// PC6 (TIM3 CH1, fs) -> PA5, PB10, PC10, PE12, PF7 (the SCK bus). The SAI replays
-    /// 8 frames, slot 5 with one bit flipped. `HansLines` starts the five SPIs with fs
-    /// held low, as `hans_in` does, and captures 1024 words per channel (41 frame
+    /// 8 frames, slot 5 with one bit flipped. `HansInput` starts the five SPIs with fs
+    /// held low (the same code as `hans_in`), and captures 1024 words per channel (41 frame
     /// periods), fed to the receiver 64 words at a time as `hans_decode` does. In
     /// super mode every channel must verify at least 28 frames on its own (so every
     /// channel is wired and aligned), and in super, vote3 (1, 3, 5) and normal
@@ -1255,30 +1260,16 @@ mod tests {
         ring_bytes[flip / 8] ^= 0x80 >> (flip % 8);
 
         let mut fs = oversample_clock::start(r.fs.tim, Some(r.fs.ctrl), None);
-        let (mut x, mut h) = (r.xy3_in, r.hans_in);
-        let rings = [
-            dma_ring!(".sram1", u16, 2 * WORDS),
-            dma_ring!(".sram1", u16, 2 * WORDS),
-            dma_ring!(".sram1", u16, 2 * WORDS),
-            dma_ring!(".sram1", u16, 2 * WORDS),
-            dma_ring!(".sram1", u16, 2 * WORDS),
-        ];
-        let [r1, r2, r3, r4, r5] = rings;
-        let rings = [
-            &mut r1[..],
-            &mut r2[..],
-            &mut r3[..],
-            &mut r4[..],
-            &mut r5[..],
-        ];
+        // Rings twice the capture: `read` fills channel 1's capture first while the
+        // others keep filling.
+        let mut input = HansInput::new(r.xy3_in, r.hans_in, hans_rings!(2 * WORDS));
         // The line is driven before the capture starts.
         let ring = dma_ring!(".sram2", u8, RING_BYTES);
         ring.copy_from_slice(&ring_bytes);
         let o = r.hans_out;
         let mut channel = None;
         let _tx = SerialTx::new(o.sai, o.sd, o.dma, Irqs, &mut channel, ring);
-        let mut lines =
-            HansLines::start(&mut x, &mut h, 0b1_1111, rings, Irqs, &mut fs.ctrl).unwrap();
+        let mut lines = input.start(0b1_1111, Irqs, &mut fs.ctrl).unwrap();
 
         let mut words = [[0u16; WORDS]; 5];
         with_timeout(WAIT, lines.read(&mut words))

@@ -24,7 +24,6 @@
 //! input timeout decides).
 
 use embassy_futures::yield_now;
-use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_time::{Instant, Timer};
 use heapless::Vec;
 use shared::bridge::HansDecode;
@@ -38,10 +37,10 @@ use crate::board::{HansInRes, Xy3InRes, HANS_FS_HZ};
 use crate::channels::{
     HansRaw, Stats, HANS_EVENTS, HANS_EVENTS_DEPTH, HANS_INPUT, HANS_IN_HALF, STATS,
 };
-use crate::drivers::hans_lines::{HansLines, CHANNELS};
+use crate::drivers::hans_lines::{HansInput, CHANNELS};
 use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::RxError;
-use xy_bridge::dma_ring;
+use xy_bridge::hans_rings;
 
 /// Words fed to the receiver at a time: about 2.5 frame periods, so the events of
 /// one chunk always fit [`CHUNK_EVENTS`] and reach the bridge without waiting for
@@ -70,33 +69,12 @@ pub fn mode_of(decode: HansDecode) -> Mode {
 /// again, and the decoder starts a new receiver on the new session.
 #[embassy_executor::task]
 pub async fn hans_in(x: Xy3InRes, h: HansInRes, fs: Fs, mode: Mode) {
-    let (mut x, mut h, mut fs) = (x, h, fs);
-    // The XY3-100 clock buffer must stay off the SCK bus: fs drives it. Forgotten
-    // on purpose: dropping an `Output` would turn the pin back into an input.
-    core::mem::forget(Output::new(
-        x.sck_buffer_oe.reborrow(),
-        Level::High,
-        Speed::Low,
-    ));
-    let rings = [
-        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
-        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
-        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
-        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
-        dma_ring!(".sram1", u16, 2 * HANS_IN_HALF),
-    ];
-    let [r1, r2, r3, r4, r5] = rings;
+    let mut fs = fs;
+    let mut input = HansInput::new(x, h, hans_rings!(2 * HANS_IN_HALF));
     let used = mode.channel_mask();
     let mut session = 0u32;
     loop {
-        let rings = [
-            &mut r1[..],
-            &mut r2[..],
-            &mut r3[..],
-            &mut r4[..],
-            &mut r5[..],
-        ];
-        let e = hans_session(&mut x, &mut h, &mut fs, used, rings, session).await;
+        let e = hans_session(&mut input, &mut fs, used, session).await;
         fs.hold_low();
         defmt::warn!("hans in: {}; restarting all channels together", e);
         Stats::bump(&STATS.input_overruns);
@@ -108,14 +86,12 @@ pub async fn hans_in(x: Xy3InRes, h: HansInRes, fs: Fs, mode: Mode) {
 
 /// One session of [`hans_in`]: returns when a channel fails (never otherwise).
 async fn hans_session(
-    x: &mut Xy3InRes,
-    h: &mut HansInRes,
+    input: &mut HansInput<'static>,
     fs: &mut Fs,
     used: u8,
-    rings: [&mut [u16]; CHANNELS],
     session: u32,
 ) -> RxError {
-    let mut lines = match HansLines::start(x, h, used, rings, Irqs, fs) {
+    let mut lines = match input.start(used, Irqs, fs) {
         Ok(l) => l,
         Err(e) => return e,
     };

@@ -31,20 +31,30 @@ fn generate(d: &Path, name: &str, args: &[&str]) -> Vec<String> {
     text.lines().map(str::to_owned).collect()
 }
 
-/// `generate` of 300 frames of `pattern` on `protocol`; returns the frames sent.
-fn generate_pattern(d: &Path, name: &str, protocol: &str, pattern: &str) -> Vec<String> {
-    generate(
-        d,
-        name,
-        &[
-            "--protocol",
-            protocol,
-            "--pattern",
-            pattern,
-            "--frames",
-            "300",
-        ],
-    )
+/// `generate` of `frames` frames of `pattern` on `protocol`; returns the frames sent.
+fn generate_pattern(
+    d: &Path,
+    name: &str,
+    protocol: &str,
+    pattern: &str,
+    frames: &str,
+) -> Vec<String> {
+    let args = [
+        "--protocol",
+        protocol,
+        "--pattern",
+        pattern,
+        "--frames",
+        frames,
+    ];
+    generate(d, name, &args)
+}
+
+/// The controller's `status` line the bridge wrote (`out/controller-status.vcd`).
+fn controller_status(d: &Path) -> Signal {
+    let path = d.join("out/controller-status.vcd");
+    let wave = read_vcd_file(&path, &["status"], &NameMap::new()).unwrap();
+    wave.get("status").unwrap().clone()
 }
 
 fn bridge(d: &Path, config: &str, input: &str, extra: &[&str]) -> Out {
@@ -60,6 +70,40 @@ fn bridge(d: &Path, config: &str, input: &str, extra: &[&str]) -> Out {
     ];
     a.extend_from_slice(extra);
     ok_in(d, &a)
+}
+
+/// [`bridge`], then `decode` of its output file `out/{file}` with `args` (`--protocol`
+/// and its options): the bridge's and `decode`'s output.
+fn bridge_and_decode(
+    d: &Path,
+    config: &str,
+    input: &str,
+    extra: &[&str],
+    file: &str,
+    args: &[&str],
+) -> (Out, Out) {
+    let o = bridge(d, config, input, extra);
+    let path = format!("out/{file}");
+    let mut a = vec!["decode"];
+    a.extend_from_slice(args);
+    a.extend(["--input", path.as_str()]);
+    (o, ok_in(d, &a))
+}
+
+/// The bridge's printout lists its output file `out/{file}` with the signals `names`
+/// (as documented).
+fn assert_listed(o: &Out, file: &str, names: &str) {
+    let listed = format!("out/{file} ({names})");
+    assert!(o.stderr.contains(&listed), "no `{listed}` in {}", o.stderr);
+}
+
+/// The bridge's printout reports the head's `alarm` at the end of the run and a laser
+/// gate that never opened.
+fn assert_alarm_keeps_gate_off(o: &Out, alarm: &str) {
+    let alarm = format!("alarms at the end: {alarm}");
+    for want in [alarm.as_str(), "laser gate: off at 0.000 ms\n"] {
+        assert!(o.stderr.contains(want), "no `{want}` in {}", o.stderr);
+    }
 }
 
 /// A counter from the bridge's printout (`name N`).
@@ -84,14 +128,22 @@ fn xy_forward(r: &ForwardRecord) -> Option<(Position, Position)> {
     Some((p("x")?, p("y")?))
 }
 
-/// Decodes the head-side file as `head` (xy2 / xy3 / hans): X/Y as head-width raw
-/// values, and the number of error records.
-fn head_positions(d: &Path, head: &str, bits: u8) -> (Vec<(u32, u32)>, usize) {
-    let mut args = vec!["decode", "--protocol", head, "--input", "out/head.vcd"];
+/// [`bridge_and_decode`] of the head-side file as `head` (xy2 / xy3 / hans) with
+/// `bits`-bit positions: the bridge's output, X/Y as head-width raw values, and the
+/// number of error records.
+fn bridge_to_head(
+    d: &Path,
+    config: &str,
+    input: &str,
+    extra: &[&str],
+    head: &str,
+    bits: u8,
+) -> (Out, Vec<(u32, u32)>, usize) {
+    let mut args = vec!["--protocol", head];
     if head == "xy2" && bits == 18 {
         args.extend(["--xy2-mode", "18"]);
     }
-    let o = ok_in(d, &args);
+    let (bridged, o) = bridge_and_decode(d, config, input, extra, "head.vcd", &args);
     let mut pos = Vec::new();
     let mut errors = 0;
     if head == "hans" {
@@ -119,7 +171,7 @@ fn head_positions(d: &Path, head: &str, bits: u8) -> (Vec<(u32, u32)>, usize) {
             }
         }
     }
-    (pos, errors)
+    (bridged, pos, errors)
 }
 
 /// What a head-side file must show.
@@ -229,7 +281,7 @@ fn config(controller: &str, head: &str, extra: &str) -> String {
 #[test]
 fn xy2_to_xy3_and_hans_heads() {
     let d = dir("xy2");
-    let sent = sent_positions(&generate_pattern(&d, "in", "xy2", "circle"));
+    let sent = sent_positions(&generate_pattern(&d, "in", "xy2", "circle", "300"));
     for (head, bits, skip, extra) in [
         ("xy3", 20, 1, ""),
         ("xy3", 26, 1, "[head.xy3]\nframe_bits = 32\n"),
@@ -237,11 +289,11 @@ fn xy2_to_xy3_and_hans_heads() {
         // Slaved: one output frame per input frame, never a repeat.
         ("xy3", 20, 1, "[output]\ntiming = \"slaved\"\n"),
     ] {
-        let o = bridge(&d, &config("xy2", head, extra), "in.vcd", &[]);
+        let cfg = config("xy2", head, extra);
+        let (o, got, errors) = bridge_to_head(&d, &cfg, "in.vcd", &[], head, bits);
         assert_eq!(counter(&o.stderr, "frames ok"), 300, "{}", o.stderr);
         assert_eq!(counter(&o.stderr, "check failures"), 0);
         assert!(o.stderr.contains("link: Safe at 0.000 ms, Running at"));
-        let (got, errors) = head_positions(&d, head, bits);
         assert_eq!(errors, 0, "{head}");
         let e = Expect {
             bits,
@@ -256,11 +308,7 @@ fn xy2_to_xy3_and_hans_heads() {
         } else {
             "clk sync x y z laser_gate"
         };
-        assert!(
-            o.stderr.contains(&format!("out/head.vcd ({names})")),
-            "{}",
-            o.stderr
-        );
+        assert_listed(&o, "head.vcd", names);
     }
 }
 
@@ -269,20 +317,15 @@ fn xy3_and_hans_controllers_with_axis_map() {
     let d = dir("xy3_hans");
     // XY3-100 (24-bit, 2.4 MHz: 96 kHz frames) -> XY2-100 16-bit: narrowing, the
     // output faster than the input (repeats), X and Y swapped.
-    let sent = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random"));
-    let o = bridge(
-        &d,
-        &config("xy3", "xy2", "[axes]\nswap_xy = true\n"),
-        "xy3.vcd",
-        &[],
-    );
+    let sent = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random", "300"));
+    let cfg = config("xy3", "xy2", "[axes]\nswap_xy = true\n");
+    let (o, got, errors) = bridge_to_head(&d, &cfg, "xy3.vcd", &[], "xy2", 16);
     assert_eq!(counter(&o.stderr, "frames ok"), 300, "{}", o.stderr);
     let repeated = counter(&o.stderr, "repeated");
     assert!(
         repeated >= 5,
         "a 96 kHz input into 100 kHz slots repeats: {repeated}"
     );
-    let (got, errors) = head_positions(&d, "xy2", 16);
     assert_eq!(errors, 0);
     let e = Expect {
         bits: 16,
@@ -293,17 +336,14 @@ fn xy3_and_hans_controllers_with_axis_map() {
     check_forwarded(&sent, &got, &e);
 
     // HANS-100 (super mode) -> XY3-100 32-bit: widening 20 -> 26 bits.
-    let sent = sent_hans(&generate_pattern(&d, "hans", "hans", "raster"));
-    let o = bridge(
-        &d,
-        &config(
-            "hans",
-            "xy3",
-            "[controller.hans]\ndecode = \"super\"\n[head.xy3]\nframe_bits = 32\n",
-        ),
-        "hans.vcd",
-        &["--hans-oversample", "4"],
+    let sent = sent_hans(&generate_pattern(&d, "hans", "hans", "raster", "300"));
+    let cfg = config(
+        "hans",
+        "xy3",
+        "[controller.hans]\ndecode = \"super\"\n[head.xy3]\nframe_bits = 32\n",
     );
+    let oversample = ["--hans-oversample", "4"];
+    let (o, got, errors) = bridge_to_head(&d, &cfg, "hans.vcd", &oversample, "xy3", 26);
     // The HANS-100 receiver needs about two frames to lock, then publishes after
     // its young lock's periods.
     assert!(
@@ -311,7 +351,6 @@ fn xy3_and_hans_controllers_with_axis_map() {
         "{}",
         o.stderr
     );
-    let (got, errors) = head_positions(&d, "xy3", 26);
     assert_eq!(errors, 0);
     let e = Expect {
         bits: 26,
@@ -325,8 +364,8 @@ fn xy3_and_hans_controllers_with_axis_map() {
 #[test]
 fn the_other_pairings() {
     let d = dir("others");
-    let xy3 = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random"));
-    let hans = sent_hans(&generate_pattern(&d, "hans", "hans", "random"));
+    let xy3 = sent_positions(&generate_pattern(&d, "xy3", "xy3", "random", "300"));
+    let hans = sent_hans(&generate_pattern(&d, "hans", "hans", "random", "300"));
     // (controller, capture, frames sent, head, head bits, extra keys, frames the
     // receivers need to lock: HANS-100 in and out take about two each, plus
     // HANS_YOUNG).
@@ -371,7 +410,8 @@ fn the_other_pairings() {
         ),
     ];
     for (ctrl, input, sent, head, bits, extra, skip) in cases {
-        let o = bridge(&d, &config(ctrl, head, extra), input, &[]);
+        let cfg = config(ctrl, head, extra);
+        let (o, got, errors) = bridge_to_head(&d, &cfg, input, &[], head, bits);
         let young = if ctrl == "hans" { HANS_YOUNG as u64 } else { 0 };
         assert!(
             counter(&o.stderr, "frames ok") >= 298 - young,
@@ -379,7 +419,6 @@ fn the_other_pairings() {
             o.stderr
         );
         assert_eq!(counter(&o.stderr, "check failures"), 0, "{}", o.stderr);
-        let (got, errors) = head_positions(&d, head, bits);
         assert_eq!(errors, 0, "{ctrl} -> {head}");
         // Each HANS-100 receiver (bridge input, head decode) publishes after its
         // young lock's periods.
@@ -398,11 +437,9 @@ fn the_other_pairings() {
     // decodes them in every frame (`generate` sends them at the centre; the pipeline
     // tests check moving values).
     let five = "[controller.xy3]\nlines = [\"x\", \"y\", \"z\", \"u\", \"w\"]\n";
-    bridge(&d, &config("xy3", "xy3", five), "xy3.vcd", &[]);
-    let o = ok_in(
-        &d,
-        &["decode", "--protocol", "xy3", "--input", "out/head.vcd"],
-    );
+    let xy3_head = ["--protocol", "xy3"];
+    let cfg = config("xy3", "xy3", five);
+    let (_, o) = bridge_and_decode(&d, &cfg, "xy3.vcd", &[], "head.vcd", &xy3_head);
     let records = jsonl::parse::<ForwardRecord>(&o.stdout).unwrap();
     assert!(records.len() >= 280, "{} records", records.len());
     for (_, r) in &records {
@@ -414,11 +451,8 @@ fn the_other_pairings() {
         }
     }
     // Without U / W from the controller the head's pairs 7 / 8 stay undriven.
-    bridge(&d, &config("xy3", "xy3", ""), "xy3.vcd", &[]);
-    let o = ok_in(
-        &d,
-        &["decode", "--protocol", "xy3", "--input", "out/head.vcd"],
-    );
+    let cfg = config("xy3", "xy3", "");
+    let (_, o) = bridge_and_decode(&d, &cfg, "xy3.vcd", &[], "head.vcd", &xy3_head);
     for (_, r) in jsonl::parse::<ForwardRecord>(&o.stdout).unwrap() {
         assert!(
             r.channel("u").is_none() && r.channel("w").is_none(),
@@ -463,14 +497,12 @@ fn capture_from_another_tool_through_the_bridge() {
     let map = [
         "--map", "clk=D0", "--map", "sync=D1", "--map", "x=D2", "--map", "y=D3",
     ];
-    let o = bridge(&d, cfg, vcd.to_str().unwrap(), &map);
+    let input = vcd.to_str().unwrap();
+    let xy2_head = ["--protocol", "xy2"];
+    let (o, dec) = bridge_and_decode(&d, cfg, input, &map, "head.vcd", &xy2_head);
     assert_eq!(counter(&o.stderr, "frames ok"), 2, "{}", o.stderr);
     assert_eq!(counter(&o.stderr, "(forwarded"), 1, "{}", o.stderr);
-    assert!(o.stderr.contains("out/head.vcd (clk sync x y laser_gate)"));
-    let dec = ok_in(
-        &d,
-        &["decode", "--protocol", "xy2", "--input", "out/head.vcd"],
-    );
+    assert_listed(&o, "head.vcd", "clk sync x y laser_gate");
     let want = concat!(
         r#"{"t_ns":30000,"x":{"pos":0,"bits":16},"y":{"pos":32768,"bits":16}}"#,
         "\n",
@@ -502,7 +534,8 @@ fn broken_line_is_never_forwarded_then_hold_and_park() {
             "y,10000",
         ],
     ));
-    let o = bridge(&d, &config("xy2", "xy3", ""), "in.vcd", &[]);
+    let cfg = config("xy2", "xy3", "");
+    let (o, got, errors) = bridge_to_head(&d, &cfg, "in.vcd", &[], "xy3", 20);
     assert!(counter(&o.stderr, "check failures") >= 1999, "{}", o.stderr);
     assert_eq!(counter(&o.stderr, "input losses"), 1);
     // Lost 1 ms after the last good frame, parked 10 ms later.
@@ -513,7 +546,6 @@ fn broken_line_is_never_forwarded_then_hold_and_park() {
     );
     assert!(o.stderr.contains("laser gate: off at 0.000 ms, on at"));
     assert!(o.stderr.contains("off at 11.000 ms"), "{}", o.stderr);
-    let (got, errors) = head_positions(&d, "xy3", 20);
     assert_eq!(errors, 0);
     let want: Vec<(u32, u32)> = sent
         .iter()
@@ -537,18 +569,7 @@ fn broken_line_is_never_forwarded_then_hold_and_park() {
 #[test]
 fn head_status_reaches_the_controller() {
     let d = dir("status");
-    generate(
-        &d,
-        "in",
-        &[
-            "--protocol",
-            "xy2",
-            "--pattern",
-            "circle",
-            "--frames",
-            "400",
-        ],
-    );
+    generate_pattern(&d, "in", "xy2", "circle", "400");
     // A healthy HANS-100 head: the controller's STATUS (level, low = OK) goes OK once
     // the link runs, and the gate opens.
     let status = d.join("status.vcd");
@@ -567,13 +588,7 @@ fn head_status_reaches_the_controller() {
         o.stderr
     );
     assert_eq!(counter(&o.stderr, "head status losses"), 0);
-    let level = read_vcd_file(
-        &d.join("out/controller-status.vcd"),
-        &["status"],
-        &NameMap::new(),
-    )
-    .unwrap();
-    let s = level.get("status").unwrap();
+    let s = controller_status(&d);
     assert!(s.initial(), "fault (high) before the link runs");
     assert!(!s.level_at(3_000_000_000), "OK at 3 ms");
     assert!(o.stderr.contains("laser gate: off at 0.000 ms, on at"));
@@ -591,23 +606,8 @@ fn head_status_reaches_the_controller() {
     )
     .unwrap();
     let o = bridge(&d, cfg, "in.vcd", &["--head-status", "status.vcd"]);
-    assert!(
-        o.stderr.contains("alarms at the end: power"),
-        "{}",
-        o.stderr
-    );
-    assert!(
-        o.stderr.contains("laser gate: off at 0.000 ms\n"),
-        "{}",
-        o.stderr
-    );
-    let level = read_vcd_file(
-        &d.join("out/controller-status.vcd"),
-        &["status"],
-        &NameMap::new(),
-    )
-    .unwrap();
-    assert!(level.get("status").unwrap().level_at(3_000_000_000));
+    assert_alarm_keeps_gate_off(&o, "power");
+    assert!(controller_status(&d).level_at(3_000_000_000));
 
     // No status capture: STATUS_LOST once status_timeout_us has passed.
     let cfg_short = format!("{cfg}status_timeout_us = 1000\n");
@@ -638,13 +638,8 @@ fn xy2_status_word_line(word: xy2::StatusWord, periods: usize) -> Waveform {
 /// own CLK falling edges, one per controller frame (20 samples ending in SYNC low).
 fn xy2_status_words_at_controller(d: &Path) -> Vec<Result<xy2::StatusWord, xy2::StatusError>> {
     let ctrl = read_vcd_file(&d.join("in.vcd"), &["clk", "sync"], &NameMap::new()).unwrap();
-    let status = read_vcd_file(
-        &d.join("out/controller-status.vcd"),
-        &["status"],
-        &NameMap::new(),
-    )
-    .unwrap();
-    let (sync, line) = (ctrl.get("sync").unwrap(), status.get("status").unwrap());
+    let line = controller_status(d);
+    let sync = ctrl.get("sync").unwrap();
     let mut words = Vec::new();
     let (mut acc, mut n) = (0u32, 0);
     for t in ctrl.get("clk").unwrap().falling_edges() {
@@ -666,18 +661,7 @@ fn xy2_status_words_at_controller(d: &Path) -> Vec<Result<xy2::StatusWord, xy2::
 #[test]
 fn xy2_status_words_both_ways() {
     let d = dir("xy2_word");
-    generate(
-        &d,
-        "in",
-        &[
-            "--protocol",
-            "xy2",
-            "--pattern",
-            "circle",
-            "--frames",
-            "400",
-        ],
-    );
+    generate_pattern(&d, "in", "xy2", "circle", "400");
     // The head reports an over-temperature in every word.
     let hot = xy2::StatusWord {
         temperature_ok: false,
@@ -700,16 +684,7 @@ fn xy2_status_words_both_ways() {
         "{}",
         o.stderr
     );
-    assert!(
-        o.stderr.contains("alarms at the end: temperature"),
-        "{}",
-        o.stderr
-    );
-    assert!(
-        o.stderr.contains("laser gate: off at 0.000 ms\n"),
-        "{}",
-        o.stderr
-    );
+    assert_alarm_keeps_gate_off(&o, "temperature");
     // The controller reads a valid status word in every frame after the first:
     // INPUT_LOST (power bit cleared) until the link runs, then the head's
     // over-temperature.
@@ -741,18 +716,7 @@ fn gate_changes(stderr: &str) -> Vec<(bool, f64)> {
 #[test]
 fn xy3_head_backchannel_alarm_turns_the_gate_off() {
     let d = dir("back");
-    generate(
-        &d,
-        "in",
-        &[
-            "--protocol",
-            "xy2",
-            "--pattern",
-            "circle",
-            "--frames",
-            "2000",
-        ],
-    );
+    generate_pattern(&d, "in", "xy2", "circle", "2000");
     // The head's backchannel as `generate` makes it: a cycle of status packets whose
     // ERROR_STATE reports nothing at first, then an error code.
     let packets: Vec<(u64, u8, Vec<u8>)> =
@@ -790,13 +754,7 @@ fn xy3_head_backchannel_alarm_turns_the_gate_off() {
         gate[2].1
     );
     // The controller's STATUS level shows the fault from then on.
-    let level = read_vcd_file(
-        &d.join("out/controller-status.vcd"),
-        &["status"],
-        &NameMap::new(),
-    )
-    .unwrap();
-    let s = level.get("status").unwrap();
+    let s = controller_status(&d);
     assert!(!s.level_at(((done_ms - 0.2) * 1e9) as u64));
     assert!(s.level_at(((done_ms + 0.2) * 1e9) as u64));
 }
@@ -807,23 +765,11 @@ fn controller_status_files_decode() {
     // An XY3-100 controller gets the backchannel, which the `decode` backchannel
     // parser takes without a single error: SYNC first, then the error state: DSP
     // data error (code 2) while the link is not running, cleared once it runs.
-    generate_pattern(&d, "xy3", "xy3", "steps");
-    let o = bridge(&d, &config("xy3", "xy2", ""), "xy3.vcd", &[]);
-    assert!(
-        o.stderr.contains("out/controller-status.vcd (back)"),
-        "{}",
-        o.stderr
-    );
-    let dec = ok_in(
-        &d,
-        &[
-            "decode",
-            "--protocol",
-            "xy3-back",
-            "--input",
-            "out/controller-status.vcd",
-        ],
-    );
+    generate_pattern(&d, "xy3", "xy3", "steps", "300");
+    let (file, cfg) = ("controller-status.vcd", config("xy3", "xy2", ""));
+    let back = ["--protocol", "xy3-back"];
+    let (o, dec) = bridge_and_decode(&d, &cfg, "xy3.vcd", &[], file, &back);
+    assert_listed(&o, file, "back");
     let packets: Vec<(u8, String)> = jsonl::parse::<BackRecord>(&dec.stdout)
         .unwrap()
         .into_iter()
@@ -841,38 +787,18 @@ fn controller_status_files_decode() {
     );
 
     // A HANS-100 controller gets STATUS frames on `status`: decoded as channel 1.
-    generate(
-        &d,
+    generate_pattern(&d, "hans", "hans", "circle", "200");
+    let cfg = config("hans", "xy3", "");
+    let ch1 = [
+        "--protocol",
         "hans",
-        &[
-            "--protocol",
-            "hans",
-            "--pattern",
-            "circle",
-            "--frames",
-            "200",
-        ],
-    );
-    let o = bridge(&d, &config("hans", "xy3", ""), "hans.vcd", &[]);
-    assert!(
-        o.stderr.contains("out/controller-status.vcd (status)"),
-        "{}",
-        o.stderr
-    );
-    let dec = ok_in(
-        &d,
-        &[
-            "decode",
-            "--protocol",
-            "hans",
-            "--hans-mode",
-            "normal:1",
-            "--map",
-            "ch1=status",
-            "--input",
-            "out/controller-status.vcd",
-        ],
-    );
+        "--hans-mode",
+        "normal:1",
+        "--map",
+        "ch1=status",
+    ];
+    let (o, dec) = bridge_and_decode(&d, &cfg, "hans.vcd", &[], file, &ch1);
+    assert_listed(&o, file, "status");
     let frames = jsonl::parse::<HansRecord>(&dec.stdout).unwrap();
     assert!(frames.len() >= 150, "{}", dec.stderr);
     assert!(frames

@@ -268,6 +268,49 @@ fn bsrr_playback_hand_worked() {
     assert!(w.get("Z").is_none());
 }
 
+/// The host pin map from a `shared` transmitter's map keeps every line on its bit
+/// (U / W only where the map has them) and refuses an XY3-100 map without X or Y.
+#[test]
+fn pin_maps_from_shared_transmitter_maps() {
+    let xy2 = shared::xy2::tx::OutPinMap {
+        clk: 4,
+        sync: 5,
+        x: 6,
+        y: 7,
+        z: None,
+    };
+    let want = OutPinMap {
+        clk: 4,
+        sync: 5,
+        x: 6,
+        y: 7,
+        z: None,
+        u: None,
+        w: None,
+    };
+    assert_eq!(OutPinMap::from_xy2(&xy2), want);
+    let xy3 = shared::xy3::tx::OutPinMap {
+        clk: 9,
+        sync: 8,
+        data: [Some(1), Some(2), None, Some(3), Some(11)],
+    };
+    let want = OutPinMap {
+        clk: 9,
+        sync: 8,
+        x: 1,
+        y: 2,
+        z: None,
+        u: Some(3),
+        w: Some(11),
+    };
+    assert_eq!(OutPinMap::from_xy3(&xy3), Some(want));
+    for missing in [0, 1] {
+        let mut bad = xy3;
+        bad.data[missing] = None;
+        assert_eq!(OutPinMap::from_xy3(&bad), None, "line {missing} missing");
+    }
+}
+
 #[test]
 fn bitstream_playback_hand_worked() {
     let s = bitstream_to_signal("CH1", &[0xA0, 0x01], HANS_BIT_RATE_HZ, 1_000_000).unwrap();

@@ -14,6 +14,8 @@
 //! - [`bridge`]: the bridge engine (configuration, translation, supervision, status).
 //! - [`governor`]: the load governor that keeps a decoder above thread mode within
 //!   its share of the core.
+//! - [`head_port`]: the board's head-side waveform pins and ticks (firmware and host
+//!   pipeline alike).
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
@@ -21,6 +23,7 @@
 pub mod bridge;
 pub mod governor;
 pub mod hans;
+pub mod head_port;
 pub mod model;
 pub mod xy2;
 pub mod xy3;

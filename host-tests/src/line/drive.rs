@@ -24,6 +24,37 @@ pub struct OutPinMap {
 }
 
 impl OutPinMap {
+    /// The lines of a `shared` XY2-100 transmitter's pin map (no U / W).
+    pub const fn from_xy2(p: &shared::xy2::tx::OutPinMap) -> OutPinMap {
+        OutPinMap {
+            clk: p.clk,
+            sync: p.sync,
+            x: p.x,
+            y: p.y,
+            z: p.z,
+            u: None,
+            w: None,
+        }
+    }
+
+    /// The lines of a `shared` XY3-100 transmitter's pin map, or `None` without X
+    /// or Y (which every XY3-100 link drives).
+    pub const fn from_xy3(p: &shared::xy3::tx::OutPinMap) -> Option<OutPinMap> {
+        let [x, y, z, u, w] = p.data;
+        let (Some(x), Some(y)) = (x, y) else {
+            return None;
+        };
+        Some(OutPinMap {
+            clk: p.clk,
+            sync: p.sync,
+            x,
+            y,
+            z,
+            u,
+            w,
+        })
+    }
+
     /// `(bit, role)` pairs of the mapped pins.
     pub fn pins(&self) -> Vec<(u8, &'static str)> {
         let mut v = vec![

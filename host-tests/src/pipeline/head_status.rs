@@ -3,6 +3,7 @@
 
 use shared::bridge::{Config, Protocol, StatusForm};
 use shared::hans::{self, StatusReceiver};
+use shared::head_port::XY2_TICK_HZ;
 use shared::model::{FaultKind, HeadStatus, Line, LineEvent};
 use shared::xy2::status_line::{LevelDebouncer, StatusWordConfig, StatusWordReceiver};
 use shared::xy2::{self, StatusLevel};
@@ -10,10 +11,6 @@ use shared::xy3::back::Parser;
 use shared::xy3::back_rx;
 
 use super::{HeadStatusInput, Options, PipelineError};
-
-/// XY2-100 output ticks per second (two per bit at 2 MHz), for the status-word
-/// sample geometry.
-const XY2_TICK_HZ: u32 = 4_000_000;
 
 enum Kind {
     Xy2Level(LevelDebouncer),
@@ -49,6 +46,7 @@ impl HeadStatusIn {
                     options.status_debounce,
                 )),
                 StatusForm::Word => {
+                    // The status-word sample geometry: one sample per output tick.
                     let ticks = XY2_TICK_HZ / config.output.frame_rate_hz.max(1);
                     let rx = StatusWordReceiver::new(StatusWordConfig {
                         pin: 0,

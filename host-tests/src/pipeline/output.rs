@@ -10,6 +10,7 @@ use shared::bridge::{
     Bridge, Config, LinkState, Output as BridgeOutput, Protocol, Timing, ZSource,
 };
 use shared::hans::frame::{RING_BYTES, RING_SLOTS};
+use shared::head_port::{self, XY2_TICK_HZ};
 use shared::model::ForwardFrame;
 use shared::xy3::BackRate;
 use shared::{hans, xy2};
@@ -19,31 +20,16 @@ use crate::line::drive::{self, OutPinMap};
 use crate::line::{roles, LineError};
 use crate::wave::{Ps, Waveform, PS_PER_S};
 
-/// Head-side XY2-100 port bits (the firmware's pair wiring on port D).
-pub const HEAD_PINS_XY2: OutPinMap = OutPinMap {
-    clk: 0,
-    sync: 1,
-    x: 2,
-    y: 3,
-    z: Some(10),
-    u: None,
-    w: None,
-};
+/// Head-side XY2-100 port bits: the firmware's ([`head_port::XY2_PINS`]).
+pub const HEAD_PINS_XY2: OutPinMap = OutPinMap::from_xy2(&head_port::XY2_PINS);
 
-/// Head-side XY3-100 port bits (SYNC on pair 1, CLK on pair 2, U / W on pairs 7 /
-/// 8); the lines driven are `Config::xy3_head_lines`.
-pub const HEAD_PINS_XY3: OutPinMap = OutPinMap {
-    clk: 1,
-    sync: 0,
-    x: 2,
-    y: 3,
-    z: Some(10),
-    u: Some(14),
-    w: Some(15),
+/// Head-side XY3-100 port bits, every line: the firmware's
+/// ([`head_port::XY3_PINS`]); the lines driven are `Config::xy3_head_lines`.
+pub const HEAD_PINS_XY3: OutPinMap = match OutPinMap::from_xy3(&head_port::XY3_PINS) {
+    Some(pins) => pins,
+    // Evaluated at build time: a map without X or Y does not build.
+    None => panic!("head_port::XY3_PINS without X or Y"),
 };
-
-/// XY2-100 output ticks: two per bit at the 2 MHz bit clock.
-const XY2_TICK_HZ: u32 = 4_000_000;
 /// HANS-100 output bit time, ps (12.5 MHz).
 const HANS_BIT_PS: u64 = 80_000;
 

@@ -2,16 +2,13 @@
 //! ([`crate::line::drive::OutPinMap`]): one set-up for the controller generator
 //! ([`super::stimulus`]) and the head output, so both drive their lines the same way.
 
+use shared::head_port;
 use shared::model::Axis;
 use shared::xy3::rx::Lines;
 use shared::xy3::FrameSize;
 use shared::{xy2, xy3};
 
 use crate::line::drive::OutPinMap;
-
-/// Idle ticks after a 32-bit XY3-100 frame: 64 + 16 = 80 ticks per frame, as the
-/// firmware (an exact division of its 240 MHz timer clock).
-const XY3_IDLE_32: u8 = 16;
 
 /// The pin map with Z kept only when the Z line is driven.
 fn with_z(pins: &OutPinMap, z: bool) -> OutPinMap {
@@ -41,8 +38,8 @@ pub(super) fn xy2(
 }
 
 /// An XY3-100 transmitter of `size` on `pins` driving the data lines `lines` (a
-/// line must have a pin in `pins`), with the firmware's idle ticks, and the pin map
-/// of the lines it drives.
+/// line must have a pin in `pins`), with the firmware's idle ticks
+/// ([`head_port::xy3_idle_ticks`]), and the pin map of the lines it drives.
 pub(super) fn xy3(
     pins: &OutPinMap,
     lines: Lines,
@@ -61,10 +58,6 @@ pub(super) fn xy3(
             return Err(xy3::tx::TxConfigError::MissingLine(axis));
         }
     }
-    let idle_ticks = match size {
-        FrameSize::Bits24 => xy3::tx::MIN_IDLE_TICKS,
-        FrameSize::Bits32 => XY3_IDLE_32,
-    };
     let tx = xy3::tx::Transmitter::new(&xy3::tx::TxConfig {
         pins: xy3::tx::OutPinMap {
             clk: p.clk,
@@ -72,7 +65,7 @@ pub(super) fn xy3(
             data: [Some(p.x), Some(p.y), p.z, p.u, p.w],
         },
         size,
-        idle_ticks,
+        idle_ticks: head_port::xy3_idle_ticks(size),
     })?;
     Ok((tx, p))
 }

@@ -22,8 +22,10 @@
 //!    of a bit of where the bit timing the pattern was read with puts them. Else the
 //!    phase may have drifted within the frame (a false or missing start edge moved
 //!    the tracking), and a tail read a bit off is random content whose complement
-//!    pairs pass at 2^-n: the channel counts a check failure instead. The **reference** channel's 125 bit centres are gathered window by window
-//!    (32 samples) with a per-phase table and four multiplications ([`table`]);
+//!    pairs pass at 2^-n: the channel counts a check failure instead. The
+//!    **reference** channel's 125 bit centres are gathered two windows (of 32
+//!    samples) at a time with a per-phase table and four multiplications per window
+//!    ([`table`]);
 //!    every other aligned channel is checked **centre for centre** against the
 //!    reference's samples, shifted by the whole samples between their delays. A
 //!    channel that matches everywhere holds the reference's pattern; one that
@@ -97,15 +99,19 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 2 170 instructions per frame for one channel at 3x (2 310 at 4x), 3 480
-//! for vote3 and 4 500 for vote5 / super (5 channels, 3x; the timing confirmation
-//! costs about 110-140 of it), against 4 400 / 5 200 /
-//! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame that is
-//! roughly: gathering the reference ~1 000 (about 65 per 32-sample window), its
-//! decode 150, copying the rings ~3 per word and channel, and per other channel
-//! ~13 per window for the centre compare plus ~100 of bookkeeping. **Still over
-//! the 1 200-instruction budget of the worst path**; what is left is listed in the
-//! README ("Known limits").
+//! About 1 970 instructions per frame for one channel at 3x (1 980 at 4x), 3 110
+//! for vote3 and 3 920 for vote5 / super (5 channels, 3x), against 2 170 / 2 310 /
+//! 3 480 / 4 500 before the gather took two windows per step, and 4 400 / 5 200 /
+//! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame at 3x
+//! that is roughly: gathering the reference ~760 (about 44 per 32-sample window,
+//! 88 per two-window step; plus ~110 in the bench's window for table entries met
+//! for the first time, which a running line stops paying once its phases have all
+//! been seen), its decode 160, the start-edge confirmation ~80, the timing filter
+//! ~70, copying the rings ~5 per word and channel (~120 per channel), per other
+//! channel ~13 per window for the centre compare (~195), and ~600 of per-frame
+//! bookkeeping (`frame`, `next`, `evaluate`, `need`) of which ~120 per extra
+//! channel. **Still over the 1 200-instruction budget of the worst path**; what is
+//! left is listed in the README ("Known limits").
 
 pub mod channel;
 pub mod modes;
@@ -476,10 +482,11 @@ impl HansRx {
     fn need(&self) -> u32 {
         let t = &self.timing;
         let mut late = 0;
-        for n in bits(self.used) {
-            let d = self.channels.get(n).and_then(|c| c.delay);
+        for (n, c) in self.channels.iter().enumerate() {
             // A channel aligning at this frame may be up to the delay limit late.
-            late = late.max(d.unwrap_or(channel::DELAY_MAX));
+            if self.used & (1 << n) != 0 {
+                late = late.max(c.delay.unwrap_or(channel::DELAY_MAX));
+            }
         }
         // The frame to decode next starts at the current edge, or, once that frame
         // is done, at the predicted next one (whose edge window lies before its
@@ -668,6 +675,23 @@ impl HansRx {
         sink: &mut impl FnMut(RxEvent),
     ) -> u8 {
         let ref_decoded = Frame::decode(ref_pattern);
+        // The steady state: every used channel holds the reference's pattern, its
+        // timing confirmed, and it passed. Every channel verified that one frame, so
+        // every mode publishes it (what the general path below concludes too).
+        if same & confirmed == self.used && present == self.used {
+            if let Ok(f) = ref_decoded {
+                for n in bits(present) {
+                    if let (Some(stats), Some(ch)) =
+                        (self.stats.get_mut(n), self.channels.get_mut(n))
+                    {
+                        stats.frames_ok = stats.frames_ok.wrapping_add(1);
+                        ch.failures = 0;
+                    }
+                }
+                sink(RxEvent::Frame(f));
+                return present;
+            }
+        }
         let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
         let mut ok = 0u8;
         for n in bits(present) {
@@ -982,11 +1006,16 @@ fn confirm_window(ratio: i32) -> u32 {
 
 /// The indices of the set bits of `mask`, lowest first.
 fn bits(mask: u8) -> impl Iterator<Item = usize> {
-    let mut m = mask;
+    let mut m = u32::from(mask);
+    // Tested for zero first: a nonzero word's trailing zeros are two instructions
+    // on the M7, and the loops here run a few dozen times a frame.
     core::iter::from_fn(move || {
+        if m == 0 {
+            return None;
+        }
         let n = m.trailing_zeros() as usize;
-        m &= m.wrapping_sub(1);
-        (n < 8).then_some(n)
+        m &= m - 1;
+        Some(n)
     })
 }
 

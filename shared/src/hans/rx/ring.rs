@@ -47,7 +47,7 @@ struct Acc {
 }
 
 impl Acc {
-    /// Appends the top `n` bits of `bits` (the rest zero, n <= 12).
+    /// Appends the top `n` bits of `bits` (the rest zero, n <= 24).
     #[inline(always)]
     fn push(&mut self, bits: u32, n: u32) {
         self.cur |= bits >> self.used;
@@ -58,7 +58,7 @@ impl Acc {
             }
             self.full += 1;
             self.used -= 32;
-            // `used` < n here, so the shift is 1..=12.
+            // `used` < n here, so the shift is 1..=24.
             self.cur = bits << (n - self.used);
         }
     }
@@ -79,10 +79,9 @@ pub struct Centres {
     pub first: u32,
     /// Windows used (at most [`MAX_WINDOWS`]).
     pub count: usize,
-    /// Bit-centre masks of the windows.
-    pub masks: [u32; MAX_WINDOWS],
-    /// The reference's samples under the masks.
-    pub values: [u32; MAX_WINDOWS],
+    /// Per window: the bit-centre mask and the reference's samples under it (side
+    /// by side, so that a compare fetches both with one double load).
+    pub windows: [[u32; 2]; MAX_WINDOWS],
 }
 
 impl Default for Ring {
@@ -190,7 +189,9 @@ impl Ring {
         // one of the phase `skip` bit times earlier, minus those `skip` centres.
         let phase = first.wrapping_sub(j << (FRAC + 5));
         let skip = (phase / ratio.max(1)).min(12);
-        let e = table.entry(diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5)));
+        let e = &table
+            .entry(diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5)))
+            .a;
         let x = self.window(j);
         let mut all = e.all;
         for _ in 0..skip {
@@ -204,47 +205,66 @@ impl Ring {
             used: n,
         };
         let mut left = FRAME_BITS as u32 - n;
-        let mut pos = first.wrapping_add(n.wrapping_mul(ratio));
-        if let (true, Some(m), Some(v)) =
-            (KEEP, centres.masks.first_mut(), centres.values.first_mut())
-        {
-            *m = all;
-            *v = x & all;
+        // The next centre against the start of the next window.
+        let mut ph = diff(
+            first.wrapping_add(n.wrapping_mul(ratio)),
+            j.wrapping_add(1) << (FRAC + 5),
+        );
+        if let (true, Some(w)) = (KEEP, centres.windows.first_mut()) {
+            *w = [all, x & all];
         }
         let mut k = 1;
-        // Whole windows: every centre is a frame bit.
-        while k < MAX_WINDOWS - 1 {
-            j = j.wrapping_add(1);
-            let e = table.entry(diff(pos, j << (FRAC + 5)));
-            let n = e.count;
+        // Whole windows, two per step ([`super::table::Pair`]): every centre is a
+        // frame bit.
+        while k < MAX_WINDOWS - 2 {
+            let p = table.entry(ph);
+            let (na, nb) = (p.a.count, p.b.count);
+            let n = na + nb;
             if n >= left {
                 break;
             }
-            let x = self.window(j);
-            acc.push(e.bits(x, slots), n);
-            if let (true, Some(m), Some(v)) =
-                (KEEP, centres.masks.get_mut(k), centres.values.get_mut(k))
-            {
-                *m = e.all;
-                *v = x & e.all;
+            let x0 = self.window(j.wrapping_add(1));
+            let x1 = self.window(j.wrapping_add(2));
+            acc.push(p.a.bits(x0, slots) | p.b.bits(x1, slots) >> na, n);
+            if let (true, Some([w0, w1])) = (KEEP, centres.windows.get_mut(k..k + 2)) {
+                *w0 = [p.a.all, x0 & p.a.all];
+                *w1 = [p.b.all, x1 & p.b.all];
             }
-            pos = pos.wrapping_add(n.wrapping_mul(ratio));
+            ph = ph
+                .wrapping_add(n.wrapping_mul(ratio) as i32)
+                .wrapping_sub(64 << FRAC);
             left -= n;
+            j = j.wrapping_add(2);
+            k += 2;
+        }
+        // At most two windows are left: one more whole window, if the next one does
+        // not hold every remaining centre, then the last.
+        j = j.wrapping_add(1);
+        let mut e = &table.entry(ph).a;
+        if e.count < left && k < MAX_WINDOWS - 1 {
+            let x = self.window(j);
+            let n = e.count;
+            acc.push(e.bits(x, slots), n);
+            if let (true, Some(w)) = (KEEP, centres.windows.get_mut(k)) {
+                *w = [e.all, x & e.all];
+            }
+            ph = ph
+                .wrapping_add(n.wrapping_mul(ratio) as i32)
+                .wrapping_sub(32 << FRAC);
+            left -= n;
+            j = j.wrapping_add(1);
             k += 1;
+            e = &table.entry(ph).a;
         }
         // The last window: its first `left` centres.
-        let e = table.entry(diff(pos, j << (FRAC + 5)));
         let x = self.window(j);
         let mut all = e.all;
         for _ in left.min(e.count)..e.count {
             all &= all.wrapping_sub(1);
         }
         acc.push(e.bits(x, slots) & all_top(left), left.min(e.count));
-        if let (true, Some(m), Some(v)) =
-            (KEEP, centres.masks.get_mut(k), centres.values.get_mut(k))
-        {
-            *m = all;
-            *v = x & all;
+        if let (true, Some(w)) = (KEEP, centres.windows.get_mut(k)) {
+            *w = [all, x & all];
         }
         centres.count = k + 1;
         let [a, b, c, _] = acc.words;
@@ -258,14 +278,13 @@ impl Ring {
         let mut bad = 0u32;
         let mut j = centres.first;
         let windows = centres
-            .masks
-            .iter()
-            .zip(&centres.values)
-            .take(centres.count);
+            .windows
+            .get(..centres.count)
+            .unwrap_or(&centres.windows);
         if d > 0 {
             let (l, r) = (d as u32 & 31, 31 - (d as u32 & 31));
             let mut here = self.window(j);
-            for (m, v) in windows {
+            for &[m, v] in windows {
                 j = j.wrapping_add(1);
                 let next = self.window(j);
                 bad |= ((here << l | (next >> 1) >> r) & m) ^ v;
@@ -274,14 +293,14 @@ impl Ring {
         } else if d < 0 {
             let (l, r) = (31 - (d.unsigned_abs() & 31), d.unsigned_abs() & 31);
             let mut prev = self.window(j.wrapping_sub(1));
-            for (m, v) in windows {
+            for &[m, v] in windows {
                 let here = self.window(j);
                 bad |= ((((prev << 1) << l) | here >> r) & m) ^ v;
                 prev = here;
                 j = j.wrapping_add(1);
             }
         } else {
-            for (m, v) in windows {
+            for &[m, v] in windows {
                 bad |= (self.window(j) & m) ^ v;
                 j = j.wrapping_add(1);
             }

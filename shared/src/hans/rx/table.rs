@@ -14,9 +14,23 @@
 //! third of it, so no carry reaches it. Masking each product to its group's slots and
 //! OR-ing the four gives the window's centre samples in order in the top bits.
 //!
+//! # Two windows per entry
+//! An entry ([`Pair`]) covers two consecutive windows: the first window's centres
+//! from the phase slot, and the second's from where the first's last centre plus
+//! one bit lands (at the table's rate). The gather loop then looks up one entry,
+//! loads two windows and appends up to 24 bits per step, halving the per-window
+//! bookkeeping. The second window's centres come from the slot's middle at the
+//! table's rate instead of the exact phase: they are off by at most 1/32 sample
+//! (the slot) plus 1/32 sample (the rate slack over the 23 centres after the
+//! first), plus, when the table's rate puts a centre just past a window's end that
+//! really lies just before it, that centre's overshoot (the next entry starts at
+//! phase 0): about 0.08 sample at most, well inside the 1/8 sample
+//! `gather_matches_bit_by_bit` allows around a rounding boundary.
+//!
 //! The entries are built lazily for the rate in use (a few dozen instructions each,
-//! at most one per window) and all dropped when the tracked rate moves enough to
-//! shift a centre by 1/32 sample; after acquisition that practically never happens.
+//! at most one per step) and all dropped when the tracked rate moves enough to
+//! shift a centre by 1/32 sample over two windows; after acquisition that rarely
+//! happens.
 
 use super::ring::FRAC;
 
@@ -24,9 +38,10 @@ use super::ring::FRAC;
 const SLOT_BITS: u32 = FRAC - 4;
 /// Slots: phases 0..r for r up to 4.2 samples per bit, plus slack.
 pub const SLOTS: usize = 72;
-/// Largest rate change (Q16 samples per bit) an entry tolerates: 11 centres later it
-/// moves the last one by 1/32 sample.
-const RATE_SLACK: i32 = (1 << FRAC) / 32 / 11;
+/// Largest rate change (Q16 samples per bit) an entry tolerates: 23 centres after
+/// its first (the last of two windows of at most 12) it moves the last one by less
+/// than 1/32 sample.
+const RATE_SLACK: i32 = (1 << FRAC) / 32 / 24;
 /// Result bits that can hold a group's centres: every group's product puts its
 /// centres `k, k + 4, k + 8` at bits 31, 27, 23, and the four are then OR-ed in one
 /// bit apart (the M7 shifts an operand for free), so one mask constant serves all.
@@ -35,11 +50,10 @@ const SLOTS_MASK: u32 = 1 << 31 | 1 << 27 | 1 << 23;
 /// The centres of a window whose first centre is in one phase slot.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
 pub struct Entry {
-    /// Centre samples of group g (bit 31 - p for sample p).
-    masks: [u32; 4],
-    /// Multipliers of group g.
-    mults: [u32; 4],
-    /// Centres in the window; 0 marks an entry not built yet.
+    /// Group g's centre samples (bit 31 - p for sample p) and multiplier, side by
+    /// side so that one double load fetches both.
+    groups: [[u32; 2]; 4],
+    /// Centres in the window.
     pub count: u32,
     /// All centre samples.
     pub all: u32,
@@ -52,19 +66,33 @@ impl Entry {
     /// mask register and shifted OR operands instead of four mask constants.
     #[inline(always)]
     pub fn bits(&self, x: u32, slots: u32) -> u32 {
-        let [m0, m1, m2, m3] = self.masks;
-        let [k0, k1, k2, k3] = self.mults;
+        let [[m0, k0], [m1, k1], [m2, k2], [m3, k3]] = self.groups;
         let g = |m: u32, k: u32| (x & m).wrapping_mul(k) & slots;
         g(m0, k0) | g(m1, k1) >> 1 | g(m2, k2) >> 2 | g(m3, k3) >> 3
     }
 }
 
+/// The centres of two consecutive windows whose first centre is in one phase slot.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
+pub struct Pair {
+    /// The first window.
+    pub a: Entry,
+    /// The second window, its first centre one bit after `a`'s last.
+    pub b: Entry,
+}
+
 /// Stands for an entry out of range (cannot happen: the slot is clamped).
-static EMPTY: Entry = Entry {
-    masks: [0; 4],
-    mults: [0; 4],
-    count: 0,
-    all: 0,
+static EMPTY: Pair = Pair {
+    a: Entry {
+        groups: [[0; 2]; 4],
+        count: 0,
+        all: 0,
+    },
+    b: Entry {
+        groups: [[0; 2]; 4],
+        count: 0,
+        all: 0,
+    },
 };
 
 /// Entries for every phase slot at one rate.
@@ -74,7 +102,7 @@ pub struct Table {
     pub slots: u32,
     /// The rate the entries are built for (Q16 samples per bit).
     pub(super) ratio: i32,
-    entries: [Entry; SLOTS],
+    entries: [Pair; SLOTS],
 }
 
 impl Table {
@@ -83,7 +111,7 @@ impl Table {
         Table {
             slots: SLOTS_MASK,
             ratio,
-            entries: [Entry::default(); SLOTS],
+            entries: [Pair::default(); SLOTS],
         }
     }
 
@@ -92,21 +120,23 @@ impl Table {
         if (ratio - self.ratio).abs() > RATE_SLACK {
             self.ratio = ratio;
             for e in self.entries.iter_mut() {
-                e.count = 0;
+                e.a.count = 0;
             }
         }
     }
 
-    /// The entry for a window whose first centre (plus half a sample) is `phase`
-    /// (Q16) after its start.
+    /// The entry for two windows, the first of which has its first centre (plus
+    /// half a sample) `phase` (Q16) after its start.
     #[inline(always)]
-    pub fn entry(&mut self, phase: i32) -> &Entry {
+    pub fn entry(&mut self, phase: i32) -> &Pair {
         let slot = ((phase.max(0) >> SLOT_BITS) as usize).min(SLOTS - 1);
         let ratio = self.ratio;
         match self.entries.get_mut(slot) {
             Some(e) => {
-                if e.count == 0 {
-                    *e = build(slot as u32, ratio);
+                // A built entry has a centre in its first window (the slot lies
+                // within 4.5 samples of its start), so 0 marks an unbuilt one.
+                if e.a.count == 0 {
+                    *e = pair(slot, ratio);
                 }
                 e
             }
@@ -116,15 +146,30 @@ impl Table {
 }
 
 /// Builds the entry of phase slot `slot` at `ratio` (Q16), taking the slot's middle.
-fn build(slot: u32, ratio: i32) -> Entry {
-    let mut e = Entry::default();
-    let mut pos = (slot << SLOT_BITS) + (1 << (SLOT_BITS - 1));
+fn pair(slot: usize, ratio: i32) -> Pair {
+    let first = ((slot as u32) << SLOT_BITS) + (1 << (SLOT_BITS - 1));
     let step = ratio.max(1 << FRAC) as u32;
+    let a = build(first, step);
+    // The first centre after window a, against the start of the next window.
+    let next = first
+        .wrapping_add(a.count.wrapping_mul(step))
+        .wrapping_sub(32 << FRAC);
+    Pair {
+        a,
+        b: build(next, step),
+    }
+}
+
+/// Builds the entry of a window whose first centre (plus half a sample) is at `pos`
+/// (Q16, below 32 samples) at `step` (Q16 samples per bit, at least one sample).
+fn build(pos: u32, step: u32) -> Entry {
+    let mut e = Entry::default();
+    let mut pos = pos;
     let mut k = 0u32;
     while pos < 32 << FRAC && k < 12 {
         let p = pos >> FRAC;
         let g = (k % 4) as usize;
-        if let (Some(m), Some(mult)) = (e.masks.get_mut(g), e.mults.get_mut(g)) {
+        if let Some([m, mult]) = e.groups.get_mut(g) {
             *m |= 1 << (31 - p);
             // Centre k goes to bit 31 - 4 (k / 4) of its group's product; p >= k
             // because centres are at least a sample apart.
@@ -159,7 +204,7 @@ mod tests {
                 if (slot << SLOT_BITS) as i32 >= ratio {
                     break;
                 }
-                let e = build(slot, ratio);
+                let e = build((slot << SLOT_BITS) + (1 << (SLOT_BITS - 1)), ratio as u32);
                 let centres: Vec<u32> = (0..32).filter(|p| e.all & (1 << (31 - p)) != 0).collect();
                 assert_eq!(centres.len() as u32, e.count);
                 let mut windows = vec![0, u32::MAX];
