@@ -190,7 +190,7 @@ async fn main(spawner: Spawner) {
             if matches!(mode, HansMode::Vote5 | HansMode::Super) {
                 // README "Tasks and executors", HANS-100 controller cost.
                 defmt::warn!(
-                    "hans in: {} costs 4500..4770 instructions per 10 us frame (QEMU), \
+                    "hans in: {} costs 3900..4100 instructions per 10 us frame (QEMU), \
                      more than the decode governor allows: expect dropped input halves",
                     mode
                 );

@@ -29,10 +29,10 @@ const _: () = assert!(HANS_HALF == HANS_IN_HALF);
 /// stats line once a second, an XY3-100 head's backchannel parser: about 1 % at
 /// 921 600 baud), but needs it within milliseconds; 10 % of the time is that many
 /// times over even when the line executor takes a third of it. It is also above
-/// what normal mode costs today (~2 230 instructions of 4 800 cycles a frame plus
-/// the line executor's preemptions: about 60 %), so a decoder that keeps up is never
-/// paused; vote3 (~3 480) is near it, vote5 / super (~4 500..4 770) are over it and
-/// are governed until the receiver is cheaper.
+/// what normal mode costs today (~1 950 instructions of 4 800 cycles a frame plus
+/// the line executor's preemptions: about 50 %) and vote3 (~3 110: 75..80 %), so a
+/// decoder that keeps up is never paused; vote5 / super (~3 920..4 080: 95..100 %)
+/// are over it and are governed until the receiver is cheaper.
 pub const SHARE_PERMILLE: u16 = 900;
 
 /// The firmware's limits: [`SHARE_PERMILLE`]; a burst of half a half period (single

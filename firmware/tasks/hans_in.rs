@@ -3,8 +3,8 @@
 //! [`LineEvent`]s.
 //!
 //! Two tasks, because the receiver is the most expensive code of the firmware
-//! (README "Measured figures": about 2 230 instructions per 10 us frame in normal
-//! mode, 3 480 for vote3, 4 500..4 770 for vote5 / super, against 4 800 cycles per
+//! (README "Measured figures": about 1 950 instructions per 10 us frame in normal
+//! mode, 3 110 for vote3, 3 920..4 080 for vote5 / super, against 4 800 cycles per
 //! frame at 480 MHz):
 //! * [`hans_in`] (line executor) only moves DMA halves into [`HANS_INPUT`], like the
 //!   other line tasks;

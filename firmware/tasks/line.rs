@@ -270,25 +270,26 @@ async fn xy3_session(
 }
 
 /// Every how many SPI6 halves one goes to the STATUS decoder, by what else the
-/// decode executor carries. `shared`'s HANS-100 receiver costs ~2 230 instructions
+/// decode executor carries. `shared`'s HANS-100 receiver costs ~1 950 instructions
 /// per frame on one channel as the firmware feeds it (QEMU, README "Measured
-/// figures"): 46 % of the 4 800 cycles of a 10 us frame at one instruction a cycle.
+/// figures"): 41 % of the 4 800 cycles of a 10 us frame at one instruction a cycle.
 /// * Without a HANS-100 controller: **every half** (1). The decoder is then the
 ///   decode executor's only work; the line executor (an XY2-100 or XY3-100 receiver,
 ///   the bridge, the HANS-100 slot updates: ~1 450 a frame, 30 %) preempts it, so it
-///   is busy ~66 % of the time, under the governor's 90 %
+///   is busy ~58 % of the time, under the governor's 90 %
 ///   (`governor::SHARE_PERMILLE`). Consecutive halves are contiguous signal, so one
 ///   receiver runs on and every frame is decoded.
 /// * With a HANS-100 controller (HANS-100 -> HANS-100): **every second half** (2).
-///   Its input decoder takes 46 % in normal mode and the line executor ~17 %
-///   (bridge, slot updates, HANS STATUS out); the STATUS decoder adds 23 %: the
-///   decode executor is busy ~84 % of the time, under the 90 %. Every half (93 % +
-///   17 %) would not fit. Each half decoded starts a fresh receiver (the halves in
-///   between are skipped), so the head's status is at most two halves (410 us) plus
-///   a decode old. In vote3 / vote5 / super the input alone is near or over the
-///   share and the governor drops STATUS halves first (optional work).
+///   Its input decoder takes 41 % in normal mode and the line executor ~17 %
+///   (bridge, slot updates, HANS STATUS out); the STATUS decoder adds 20 %: the
+///   decode executor is busy ~73 % of the time, under the 90 %. Every half (81 % +
+///   17 %, busy ~98 %) would not fit. Each half decoded starts a fresh receiver (the
+///   halves in between are skipped), so the head's status is at most two halves
+///   (410 us) plus a decode old. With vote3 (~65 %) the two together are over the
+///   share, and vote5 / super alone: the governor drops STATUS halves first
+///   (optional work) but decodes one at least every 1.6 ms.
 ///
-/// Once the receiver is about twice as cheap, 1 fits both pairings.
+/// Below ~1 700 instructions per frame (busy ~85 %), 1 fits both pairings.
 pub const fn hans_status_every(hans_controller: bool) -> u32 {
     if hans_controller {
         2
