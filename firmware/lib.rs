@@ -6,3 +6,4 @@
 pub mod board;
 pub mod drivers;
 mod ring;
+pub mod tcm;

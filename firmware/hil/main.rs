@@ -1519,4 +1519,28 @@ mod tests {
             assert_eq!(seen, health);
         }
     }
+
+    /// Hot code in ITCM (no jumpers; firmware/tcm.rs, `memory.x`). `__pre_init`
+    /// copied `.itcm` from flash before `main`: the running image must equal its load
+    /// image byte for byte, `HansRx::new` (a `shared::hans::rx` function, which the
+    /// linker script puts there) must have its address in `.itcm`, not in flash, and
+    /// calls through that address must run: a valid set-up is accepted, a sample rate
+    /// outside 3..4x the bit rate refused.
+    #[test]
+    fn itcm_holds_the_hot_code(_board: Board) {
+        let itcm = xy_bridge::tcm::itcm();
+        assert!(itcm.start > 0 && itcm.start < itcm.end && itcm.end <= 0x1_0000);
+        let (run, load) = xy_bridge::tcm::itcm_load_image();
+        let differ = run.iter().zip(load).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "ITCM bytes that differ from the flash image");
+        let new: fn(u32, HansMode) -> Result<HansRx, _> = HansRx::new;
+        let addr = new as usize & !1;
+        assert!(
+            itcm.contains(&addr),
+            "HansRx::new at {:#x}, not in ITCM",
+            addr
+        );
+        assert!(new(HANS_FS_HZ, HansMode::Normal { channel: 1 }).is_ok());
+        assert!(new(1_000_000, HansMode::Normal { channel: 1 }).is_err());
+    }
 }

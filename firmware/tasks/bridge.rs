@@ -5,10 +5,9 @@
 //! the HANS-100 loop is in [`super::bridge_core`]; this task owns the waveform output
 //! and the XY2 STATUS word sampler.
 //!
-//! Hot state (receiver, `Bridge`, encoder) lives in the task's future, i.e. in the
-//! executor's task pool in AXI SRAM (`.bss`, zeroed by the runtime), not in `.dtcm`:
-//! `.dtcm` is NOLOAD, so it would need a `MaybeUninit` static written before use, and
-//! with the D-cache off the bridge's cost per batch has not been measured to need it.
+//! Hot state (receiver, `Bridge`, encoder, batch buffer) lives in the task's future,
+//! i.e. in the executor's task pool, which `memory.x` puts into DTCM (`.dtcm_bss`,
+//! zeroed by `xy_bridge::tcm` at reset; no buffer of the future is handed to a DMA).
 
 use embassy_stm32::gpio::{Input, Level, Output, Speed};
 use embassy_stm32::pac;

@@ -8,9 +8,9 @@ use std::path::Path;
 pub struct Size {
     /// Bytes stored in flash: code, read-only data and the initial values of `.data`.
     pub flash: u64,
-    /// Bytes of statically allocated RAM (all regions).
+    /// Bytes of statically allocated RAM (all data regions; ITCM code not included).
     pub ram: u64,
-    /// RAM bytes per memory region (named as in `memory.x`), largest first.
+    /// Bytes per RAM region (named as in `memory.x`, ITCM included), largest first.
     pub regions: Vec<(String, u64)>,
 }
 
@@ -50,11 +50,15 @@ pub fn read(elf: &Path) -> Result<Size, String> {
             flash += section.size();
             continue;
         }
-        // A RAM section with file contents (.data) is also stored in flash.
+        // A RAM section with file contents (.data, .dtcm, the code in .itcm) is also
+        // stored in flash, as the image the start-up code copies.
         if in_file {
             flash += section.size();
         }
-        ram += section.size();
+        // ITCM holds code: counted per region below, not as static RAM.
+        if place != "ITCM" {
+            ram += section.size();
+        }
         match regions.iter_mut().find(|(n, _)| n == place) {
             Some((_, b)) => *b += section.size(),
             None => regions.push((place.to_string(), section.size())),

@@ -23,6 +23,7 @@ use std::time::Instant;
 mod bench;
 mod elf_size;
 mod fuzz;
+mod placement;
 mod qemu;
 
 /// The host target the host crates are built for (the workspace default is the MCU).
@@ -35,6 +36,9 @@ const HOST_PACKAGES: &[&str] = &["xy-bridge-shared", "host-tests", "xtask"];
 const DENY_WARNINGS: &[&str] = &["--", "-D", "warnings"];
 /// Flash budget for the firmware image (issue 6).
 const FLASH_BUDGET: u64 = 256 * 1024;
+/// ITCM and DTCM sizes (RM0433 section 2.3.2), for the size report.
+const ITCM_KIB: u64 = 64;
+const DTCM_KIB: u64 = 128;
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -137,6 +141,14 @@ fn test_all() -> Result {
     firmware_size()?;
     // The hardware-in-the-loop tests need a board to run, but must always build.
     cargo(&["build", "--release", "--target", MCU, "--test", "hil"])?;
+    // The HIL binary links every role's `shared` code (the HANS-100 receiver too,
+    // which the default firmware configuration leaves out): same placement rules.
+    let hil = newest_hil_elf()?;
+    let tcm = placement::check(&hil, &root().join("memory.x"))?;
+    println!(
+        "hil: ITCM {} bytes ({} hot functions), DTCM {} bytes",
+        tcm.itcm, tcm.itcm_functions, tcm.dtcm
+    );
     qemu::run()?;
     fuzz::run()?;
     eprintln!(
@@ -165,6 +177,12 @@ fn firmware_size() -> Result {
     for (name, bytes) in &size.regions {
         println!("  {name:<8} {bytes:>8} bytes");
     }
+    // Hot code in ITCM, hot state in DTCM, as memory.x asks (fails otherwise).
+    let tcm = placement::check(&elf, &root().join("memory.x"))?;
+    println!(
+        "  ITCM: {} of {} KiB hot code ({} functions); DTCM: {} of {} KiB hot state ({} statics)",
+        tcm.itcm, ITCM_KIB, tcm.itcm_functions, tcm.dtcm, DTCM_KIB, tcm.dtcm_statics
+    );
     if size.flash > FLASH_BUDGET {
         return Err(format!(
             "firmware flash use {} exceeds the {FLASH_BUDGET}-byte budget",
@@ -172,4 +190,22 @@ fn firmware_size() -> Result {
         ));
     }
     Ok(())
+}
+
+/// The HIL test binary cargo built last (`target/<MCU>/release/deps/hil-<hash>`).
+fn newest_hil_elf() -> Result<PathBuf> {
+    let deps = root().join("target").join(MCU).join("release").join("deps");
+    let entries =
+        std::fs::read_dir(&deps).map_err(|e| format!("cannot list {}: {e}", deps.display()))?;
+    entries
+        .filter_map(|e| e.ok())
+        .filter(|e| {
+            let name = e.file_name();
+            let name = name.to_string_lossy();
+            name.starts_with("hil-") && !name.contains('.')
+        })
+        .filter_map(|e| Some((e.metadata().ok()?.modified().ok()?, e.path())))
+        .max()
+        .map(|(_, path)| path)
+        .ok_or_else(|| format!("no HIL test binary in {}", deps.display()))
 }

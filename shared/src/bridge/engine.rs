@@ -155,8 +155,19 @@ impl Bridge {
     }
 
     /// Applies time up to `now_ns` to the supervisor and cleans up after a loss.
+    /// Inlined: in the quiet case (`Supervisor::poll`) nothing changed and the
+    /// clean-up folds away.
+    #[inline(always)]
     pub(super) fn poll(&mut self, now_ns: u64) {
-        let Changes { lost, status_lost } = self.sup.poll(now_ns);
+        let changes = self.sup.poll(now_ns);
+        if changes != Changes::default() {
+            self.clean_up(changes);
+        }
+    }
+
+    /// Counts the changes of a supervisor poll and cleans up after an input loss.
+    #[inline(never)]
+    fn clean_up(&mut self, Changes { lost, status_lost }: Changes) {
         if lost {
             bump(&mut self.counters.input_losses);
             self.mo_pa = false;
@@ -401,6 +412,7 @@ fn breaks_run(line: Line, channel_is_period: bool) -> bool {
 /// and returns the backchannel rate an XY3-100 command in it sets on the head.
 /// A free function over the fields it needs, so it can work on the pending frame in
 /// place while the rest of the bridge is borrowed too.
+#[inline(always)]
 fn finish_frame(
     f: &mut ForwardFrame,
     held: &mut [Option<Position>; 5],

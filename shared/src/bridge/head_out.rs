@@ -69,7 +69,7 @@ impl HeadTx {
                 xy2_frame(f, *mode, *z).is_some_and(|t| tx.write_frame(slot, &t).is_ok())
             }
             (HeadTx::Xy3 { tx, lines }, Some(f)) => {
-                xy3_frames(f, tx.size(), *lines).is_some_and(|t| tx.encode(&t, slot).is_ok())
+                xy3_words(tx, f, *lines).is_some_and(|words| tx.encode_words(words, slot).is_ok())
             }
             (_, None) => false,
         };
@@ -99,31 +99,36 @@ fn xy2_frame(f: &ForwardFrame, mode: xy2::Mode, z: bool) -> Option<xy2::tx::TxFr
     })
 }
 
-/// The XY3-100 frames of one slot, one per driven line, or `None` if `f` lacks one
-/// of them or carries a command XY3-100 cannot send. Axes `f` carries for lines the
-/// head does not drive are left out.
-fn xy3_frames(
-    f: &ForwardFrame,
-    size: xy3::FrameSize,
-    lines: Lines,
-) -> Option<[Option<xy3::Frame>; 5]> {
-    let pos = |a: Axis| f.axis(a).map(|p| position_frame(p, size));
+/// The XY3-100 wire words of one slot (0 for lines not driven), or `None` if `f`
+/// lacks a frame for one of the driven lines, carries a command XY3-100 cannot send,
+/// or the transmitter's pins for Z, U and W are not exactly those of `lines` (which
+/// [`xy3::tx::Transmitter::encode`] would refuse too). Axes `f` carries for
+/// lines the head does not drive are left out.
+///
+/// The frames are built at the transmitter's size and encoded here, once, so the
+/// transmitter only fills the slot ([`xy3::tx::Transmitter::encode_words`]): this is
+/// exactly what [`xy3::tx::Transmitter::encode`] would write for them, without
+/// checking again what this function guarantees (frame size, a frame exactly for
+/// every driven line).
+fn xy3_words(tx: &xy3::tx::Transmitter, f: &ForwardFrame, lines: Lines) -> Option<[u32; 5]> {
+    // X and Y always have pins (the transmitter requires them) and always go out.
+    let optional = [Axis::Z, Axis::U, Axis::W];
+    if optional.iter().any(|&a| tx.drives(a) != lines.has(a)) {
+        return None;
+    }
+    let size = tx.size();
+    let word = |frame: xy3::Frame| xy3::encode(&frame).ok().map(|(w, _)| w);
+    let pos = |a: Axis| f.axis(a).and_then(|p| word(position_frame(p, size)));
     // The command frame takes X's place (XY3-100 sends commands on the X line).
     let x = match f.command {
-        Some(c) => command_frame(&c, size).ok(),
+        Some(c) => command_frame(&c, size).ok().and_then(word),
         None => pos(Axis::X),
     }?;
     // A driven line needs its frame: all-zero bits would be a dead line to the head.
-    let other = |a: Axis| -> Option<Option<xy3::Frame>> {
-        if lines.has(a) {
-            pos(a).map(Some)
-        } else {
-            Some(None)
-        }
-    };
+    let other = |a: Axis| if lines.has(a) { pos(a) } else { Some(0) };
     Some([
-        Some(x),
-        Some(pos(Axis::Y)?),
+        x,
+        pos(Axis::Y)?,
         other(Axis::Z)?,
         other(Axis::U)?,
         other(Axis::W)?,
@@ -180,21 +185,10 @@ mod tests {
         xy3_lines(size, lines)
     }
 
-    /// An XY3-100 head on the firmware's pins (Z PD10, U PD14, W PD15) driving `lines`.
+    /// An XY3-100 head on the firmware's pins (`head_port::xy3_pins`) driving `lines`.
     fn xy3_lines(size: FrameSize, lines: Lines) -> HeadTx {
-        let pin = |a: Axis, bit: u8| lines.has(a).then_some(bit);
         let config = xy3::tx::TxConfig {
-            pins: xy3::tx::OutPinMap {
-                clk: 1,
-                sync: 0,
-                data: [
-                    Some(2),
-                    Some(3),
-                    pin(Axis::Z, 10),
-                    pin(Axis::U, 14),
-                    pin(Axis::W, 15),
-                ],
-            },
+            pins: crate::head_port::xy3_pins(lines),
             size,
             idle_ticks: xy3::tx::MIN_IDLE_TICKS,
         };
@@ -431,5 +425,91 @@ mod tests {
             words.iter().all(|w| w & 1 << 15 == 0),
             "W (PD15) not driven"
         );
+    }
+
+    /// A transmitter whose Z / U / W pins are not those of `lines` idles every
+    /// slot, as the transmitter's own frame checks would have it.
+    #[test]
+    fn xy3_pins_not_matching_lines_idle() {
+        use Axis::{U, X, Y, Z};
+        let f = xyzuw();
+        for (pins, lines) in [
+            (&[X, Y][..], &[X, Y, Z][..]),
+            (&[X, Y, Z], &[X, Y]),
+            (&[X, Y, U], &[X, Y, Z]),
+        ] {
+            let HeadTx::Xy3 { tx, .. } = xy3_lines(FrameSize::Bits32, Lines::new(pins).unwrap())
+            else {
+                panic!()
+            };
+            let h = HeadTx::Xy3 {
+                tx,
+                lines: Lines::new(lines).unwrap(),
+            };
+            assert_eq!(run(&h, Some(&f)), (false, idle(&h)), "{pins:?} {lines:?}");
+        }
+    }
+
+    /// What the head encoder wrote before it encoded the XY3-100 words itself: the
+    /// frames of the driven lines through the transmitter's checked `encode`.
+    fn xy3_reference(head: &HeadTx, f: &ForwardFrame) -> (bool, Vec<u32>) {
+        let HeadTx::Xy3 { tx, lines } = head else {
+            panic!("not an XY3-100 head")
+        };
+        let size = tx.size();
+        let pos = |a: Axis| f.axis(a).map(|p| position_frame(p, size));
+        let frames = || -> Option<[Option<xy3::Frame>; 5]> {
+            let x = match f.command {
+                Some(c) => command_frame(&c, size).ok(),
+                None => pos(Axis::X),
+            }?;
+            let other = |a: Axis| {
+                if lines.has(a) {
+                    pos(a).map(Some)
+                } else {
+                    Some(None)
+                }
+            };
+            Some([
+                Some(x),
+                Some(pos(Axis::Y)?),
+                other(Axis::Z)?,
+                other(Axis::U)?,
+                other(Axis::W)?,
+            ])
+        };
+        let mut slot = vec![0xDEAD_BEEF; tx.ticks_per_frame()];
+        match frames().map(|t| tx.encode(&t, &mut slot)) {
+            Some(Ok(())) => (true, slot),
+            _ => (false, idle(head)),
+        }
+    }
+
+    proptest::proptest! {
+        /// The XY3-100 path equals the checked reference for random frames (any
+        /// axes present at any width, commands XY3-100 can and cannot send), random
+        /// line sets and both frame sizes.
+        #[test]
+        fn xy3_matches_the_checked_encoder(
+            raw in proptest::array::uniform5((proptest::option::of(proptest::num::u32::ANY), 1u8..=32)),
+            command in proptest::option::of((proptest::bool::ANY, 0u32..0x20_0000)),
+            optional in proptest::array::uniform3(proptest::bool::ANY),
+            big in proptest::bool::ANY,
+        ) {
+            let mut f = ForwardFrame::default();
+            for (axis, (v, bits)) in f.axes.iter_mut().zip(raw) {
+                *axis = v.and_then(|v| Position::from_raw(v >> (32 - u32::from(bits)), bits).ok());
+            }
+            f.command = command.map(|(xy3, code)| if xy3 {
+                Command::Xy3(code)
+            } else {
+                Command::Xy2Enhanced { command: code as u8, parameter: 0 }
+            });
+            let mut axes = vec![Axis::X, Axis::Y];
+            axes.extend([Axis::Z, Axis::U, Axis::W].into_iter().zip(optional).filter(|(_, on)| *on).map(|(a, _)| a));
+            let size = if big { FrameSize::Bits32 } else { FrameSize::Bits24 };
+            let h = xy3_lines(size, Lines::new(&axes).unwrap());
+            proptest::prop_assert_eq!(run(&h, Some(&f)), xy3_reference(&h, &f));
+        }
     }
 }

@@ -114,10 +114,18 @@ impl Supervisor {
 
     /// Applies the passage of time up to `now_ns`: input timeout, end of hold,
     /// broken recovery runs and the status watchdog.
+    /// Inlined so the quiet case costs its compare at the call site, not a call.
+    #[inline(always)]
     pub fn poll(&mut self, now_ns: u64) -> Changes {
         if now_ns < self.quiet_until {
             return Changes::default();
         }
+        self.poll_rules(now_ns)
+    }
+
+    /// [`Supervisor::poll`] at or after the quiet interval's end.
+    #[inline(never)]
+    fn poll_rules(&mut self, now_ns: u64) -> Changes {
         let ch = self.rules(now_ns);
         self.refresh();
         ch

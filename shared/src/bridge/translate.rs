@@ -159,6 +159,8 @@ impl Translator {
 
     /// Translates `input` into `out`, which must be empty (`ForwardFrame::default()`):
     /// written in place because the caller keeps the result in its own slot.
+    /// Inlined into the engine's frame path (its one caller per timing mode).
+    #[inline(always)]
     pub fn translate(&self, input: &ForwardFrame, out: &mut ForwardFrame) -> Translated {
         let [x, y, z, u, w] = &mut out.axes;
         *x = self.x.apply(input);

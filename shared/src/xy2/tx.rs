@@ -23,14 +23,21 @@
 //! # Cost
 //! [`Transmitter::new`] precomputes the whole first word of a bit for each of the 8
 //! patterns of one bit per data line (CLK and SYNC set, each data pin set or reset).
-//! Each half of the frame (10 bits) of the three lines is interleaved into one word
-//! with two lookups per line in a 32-entry spreading table, so that bit time `k`'s
-//! pattern index is the 3-bit field at `3k`; per bit the encoder then extracts that
-//! field, looks the word up and stores it with the constant CLK-reset word: no
-//! branches on the data, four instructions per bit. Bit 20 additionally flips SYNC
-//! from set to reset. A missing Z line has no pin, so its bit selects between
-//! identical entries. About 230 instructions per frame of three lines on the
-//! Cortex-M7 (`cargo xtask qemu`), of which some 80 encode the three frames.
+//! The bit loop (`lanes`, shared with the XY3-100 transmitter) gathers the pattern
+//! indices of eight bit times of the three lines at once, one look-up per line in a
+//! 256-entry spreading table; per bit it then extracts the 3-bit field, looks the
+//! word up and stores it with the constant CLK-reset word: no branches on the data,
+//! four instructions per bit. Bit 20 additionally flips SYNC from set to reset. A
+//! missing Z line has no pin, so its bit selects between identical entries. The
+//! frame checks and wire words ([`Transmitter::write_frame`]) inline into the caller,
+//! so frames built there (`bridge::head_out`) are never packed into enums; only the
+//! fill is a call. About 200 instructions per frame of three lines on the Cortex-M7
+//! (`cargo xtask qemu`), some 125 of them filling the 40 words.
+//!
+//! The per-bit stores are the floor the compiler leaves: tables of two bit times per
+//! entry (four words copied as a block) came out no cheaper, since it splits such
+//! small copies into single-word loads and stores, and it rarely pairs a word with
+//! the constant CLK-reset word into one 64-bit store.
 //!
 //! # Errors
 //! A frame the link cannot carry ([`EncodeError`]) is never half-sent: its slot is filled
@@ -41,6 +48,8 @@ use core::fmt;
 use super::frame::{encode, EncodeError, Frame, LinkConfig, FRAME_BITS};
 use super::rx::{check_pins, PinError};
 use crate::model::Axis;
+
+pub(crate) mod lanes;
 
 /// Ticks the 20 bits of a frame take.
 pub const FRAME_TICKS: usize = 2 * FRAME_BITS as usize;
@@ -154,20 +163,11 @@ impl Transmitter {
         let lanes = [bit(pins.x), bit(pins.y), pins.z.map_or(0, bit)];
         let data = lanes.iter().fold(0, |a, &m| a | m);
         let high = bit(pins.clk) | bit(pins.sync);
-        let mut patterns = [0u32; 8];
-        for (v, entry) in patterns.iter_mut().enumerate() {
-            let set = lanes
-                .iter()
-                .enumerate()
-                .filter(|(i, _)| v >> i & 1 != 0)
-                .fold(0, |a, (_, &m)| a | m);
-            *entry = high | set | (data ^ set) << 16;
-        }
         Ok(Transmitter {
             link,
             ticks: ticks_per_frame,
             has_z: pins.z.is_some(),
-            patterns,
+            patterns: lanes::patterns(high, lanes),
             clk_reset: bit(pins.clk) << 16,
             sync_drop: bit(pins.sync) | bit(pins.sync) << 16,
             idle: (high | data) << 16,
@@ -185,6 +185,7 @@ impl Transmitter {
     }
 
     /// Encodes `frame` into `slot` (exactly [`Self::ticks_per_frame`] words).
+    #[inline(always)]
     pub fn write_frame(&self, slot: &mut [u32], frame: &TxFrame) -> Result<(), TxError> {
         self.check_len(slot, 1)?;
         match self.encode(frame) {
@@ -221,6 +222,7 @@ impl Transmitter {
         result
     }
 
+    #[inline(always)]
     fn check_len(&self, buf: &[u32], frames: usize) -> Result<(), TxError> {
         let expected = self.ticks.saturating_mul(frames);
         if buf.len() == expected {
@@ -233,6 +235,7 @@ impl Transmitter {
         }
     }
 
+    #[inline(always)]
     fn encode(&self, frame: &TxFrame) -> Result<[u32; 3], TxError> {
         let enc = |axis, f| encode(f, &self.link).map_err(|error| TxError::Encode { axis, error });
         let z = match frame.z {
@@ -242,67 +245,25 @@ impl Transmitter {
         Ok([enc(Axis::X, frame.x)?, enc(Axis::Y, frame.y)?, z])
     }
 
-    /// Writes the 40 bit words and the idle tail; `slot` has the right length.
+    /// Writes the 40 bit words and the idle tail; `slot` has the right length. Out of
+    /// line: it is the same for every caller, while the frame checks inline.
+    #[inline(never)]
     fn fill(&self, slot: &mut [u32], [x, y, z]: [u32; 3]) {
         let (bits, tail) = slot.split_at_mut(FRAME_TICKS.min(slot.len()));
         tail.fill(self.idle);
-        let Some(bits) = bits.first_chunk_mut::<FRAME_TICKS>() else {
+        let (pairs, _) = bits.as_chunks_mut::<2>();
+        let Some(pairs) = pairs.first_chunk_mut::<{ FRAME_BITS as usize }>() else {
             return;
         };
-        let clk_reset = self.clk_reset;
-        let pattern = |v: u32| {
-            self.patterns
-                .get((v & 7) as usize)
-                .copied()
-                .unwrap_or(self.idle)
-        };
-        // The bits go MSB first: bit 19 of each word in the first pair. Each half of
-        // the frame is one interleaved word (see `interleave`), so a bit's pattern
-        // index is a fixed 3-bit field: no per-bit gathering.
-        let (pairs, _) = bits.as_chunks_mut::<2>();
-        let (first, second) = pairs.split_at_mut(HALF_BITS);
-        for (half, lanes) in [(first, [x >> 10, y >> 10, z >> 10]), (second, [x, y, z])] {
-            let v = interleave(lanes);
-            for (pair, k) in half.iter_mut().zip((0..HALF_BITS as u32).rev()) {
-                *pair = [pattern(v >> (3 * k)), clk_reset];
-            }
-        }
-        if let Some(pair) = pairs.last_mut() {
-            pair[0] ^= self.sync_drop;
+        // MSB-aligned: bit 19, the first on the wire, in bit 31.
+        let align = 32 - FRAME_BITS;
+        let lines = [x << align, y << align, z << align];
+        lanes::fill(&self.patterns, self.clk_reset, lines, pairs);
+        if let Some(last) = pairs.last_mut() {
+            last[0] ^= self.sync_drop;
         }
     }
 }
-
-/// Bits per half frame (two halves of 10 bits: 30 interleaved bits fit a `u32`).
-const HALF_BITS: usize = FRAME_BITS as usize / 2;
-
-/// Bits 9..0 of each lane interleaved: bit `k` of X, Y, Z lands at bit `3k`, `3k + 1`,
-/// `3k + 2`, so bits `3k + 2 ..= 3k` are the pattern index of bit time `k`.
-fn interleave([x, y, z]: [u32; 3]) -> u32 {
-    spread3(x) | spread3(y) << 1 | spread3(z) << 2
-}
-
-/// Moves bit `k` (k < 10) of `v` to bit `3k` and clears the rest: two lookups of
-/// five bits each in [`SPREAD5`].
-fn spread3(v: u32) -> u32 {
-    let t = |i: u32| SPREAD5.get((i & 31) as usize).copied().unwrap_or(0);
-    t(v) | t(v >> 5) << 15
-}
-
-/// Bit `k` of the index at bit `3k` (k < 5).
-const SPREAD5: [u32; 32] = {
-    let mut t = [0u32; 32];
-    let mut i = 0;
-    while i < 32 {
-        let mut k = 0;
-        while k < 5 {
-            t[i] |= ((i as u32 >> k) & 1) << (3 * k);
-            k += 1;
-        }
-        i += 1;
-    }
-    t
-};
 
 #[cfg(test)]
 mod tests {
@@ -310,13 +271,6 @@ mod tests {
     use proptest::prelude::*;
 
     proptest! {
-        /// The spread puts every one of the 10 low bits at three times its index.
-        #[test]
-        fn spread3_matches_bit_by_bit(v in any::<u32>()) {
-            let want = (0..10).fold(0, |a, k| a | (v >> k & 1) << (3 * k));
-            prop_assert_eq!(spread3(v), want);
-        }
-
         /// `fill` gives the words of the per-bit definition in the module docs, for
         /// random words on random pin maps (Z pin or not; bits above 19 ignored).
         #[test]

@@ -34,20 +34,26 @@
 //! other lines.
 //!
 //! # Cost
-//! The pins are resolved once: a 32-entry table gives the BSRR data part for every
-//! pattern of one bit per line. Encoding takes six bit times at a time: each line's
-//! six bits are spread five places apart by a 64-entry table and the lines merged
-//! one place apart, so each bit time's pattern index is a 5-bit field; per bit the
-//! encoder extracts it, looks the word up and stores it with the CLK-reset word. The
-//! loop is compiled once per frame size (fully unrolled) and once for heads without
-//! U and W (which skips their two lines). No branches on the data. About 385
-//! instructions per 32-bit frame period on X Y Z and 530 on all five lines on the
-//! Cortex-M7 (`cargo xtask qemu`), some 100 of them checking and encoding the frames.
+//! The pins are resolved once: a 32-entry table gives the rising word (CLK set, data
+//! set or reset) for every pattern of one bit per line, and the CLK, SYNC and data
+//! masks are kept as BSRR bits. Heads without U and W use the XY2-100 transmitter's
+//! bit loop (`xy2::tx::lanes`): the first 8 entries are the X Y Z patterns, each
+//! line's next byte is spread by a 256-entry table so eight bit times' indices sit
+//! side by side, then per bit one field extract, one look-up and two stores. With U
+//! or W the five lines are merged six bit times at a time into 5-bit fields (a
+//! 64-entry spreading table). The loop is compiled once per frame size (fully
+//! unrolled) and per "U or W driven". No branches on the data. About 320
+//! instructions per 32-bit frame period on X Y Z (285 for 24-bit frames) and 440 on
+//! all five lines on the Cortex-M7 (`cargo xtask qemu`), some 125 of them checking
+//! and encoding the frames ([`Transmitter::encode`]); the bridge's head encoder
+//! builds and encodes its frames itself and only fills
+//! ([`Transmitter::encode_words`]).
 
 use core::fmt;
 
 use super::frame::{encode, EncodeError, Frame, FrameSize};
 use crate::model::Axis;
+use crate::xy2::tx::lanes;
 
 /// Idle ticks a frame period needs at least: SYNC set-up before the first rising CLK
 /// edge and SYNC rising after the last falling one.
@@ -143,23 +149,21 @@ const fn set(pin: u8) -> u32 {
     1 << pin
 }
 
-/// Reset bit of `pin` in the BSRR high half.
-const fn reset(pin: u8) -> u32 {
-    1 << (pin + 16)
-}
-
 /// The XY3-100 transmitter: precomputed masks for one pin map and frame size.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct Transmitter {
-    clk: u8,
-    sync: u8,
+    /// Set bit of CLK (its reset bit is this shifted up 16).
+    clk: u32,
+    /// Set bit of SYNC.
+    sync: u32,
     /// Pin per axis, `None` if not driven.
     data: [Option<u8>; 5],
     /// Set bits of every driven data pin.
     data_mask: u32,
     /// The rising-edge word (CLK set, data set for ones, reset for zeros) of every
-    /// pattern of one bit per line: bit 4 = X, bit 3 = Y, … bit 0 = W.
+    /// pattern of one bit per line: bit 0 = X, bit 1 = Y, … bit 4 = W. Its first 8
+    /// entries (U and W low) are the patterns of X, Y and Z alone.
     lut: [u32; 32],
     size: FrameSize,
     ticks: usize,
@@ -197,14 +201,14 @@ impl Transmitter {
                 .data
                 .iter()
                 .enumerate()
-                .filter(|(i, _)| v >> (4 - i) & 1 != 0)
+                .filter(|(i, _)| v >> i & 1 != 0)
                 .filter_map(|(_, p)| *p)
                 .fold(0, |m, p| m | set(p));
             *entry = set(pins.clk) | ones | (data_mask ^ ones) << 16;
         }
         Ok(Transmitter {
-            clk: pins.clk,
-            sync: pins.sync,
+            clk: set(pins.clk),
+            sync: set(pins.sync),
             data: pins.data,
             data_mask,
             lut,
@@ -224,6 +228,11 @@ impl Transmitter {
         self.size
     }
 
+    /// Whether `axis`' data line has a pin.
+    pub fn drives(&self, axis: Axis) -> bool {
+        matches!(self.data.get(axis.index()), Some(Some(_)))
+    }
+
     /// The tick (DMA request) rate for `frame_rate_hz` frames per second.
     pub const fn tick_hz(&self, frame_rate_hz: u32) -> u64 {
         self.ticks as u64 * frame_rate_hz as u64
@@ -235,7 +244,7 @@ impl Transmitter {
         let words = self.slot(out)?;
         words.fill(0);
         if let Some(first) = words.first_mut() {
-            *first = set(self.sync) | reset(self.clk) | self.data_mask << 16;
+            *first = self.sync | (self.clk | self.data_mask) << 16;
         }
         Ok(())
     }
@@ -251,6 +260,7 @@ impl Transmitter {
     /// Encodes one frame period into `out[..ticks_per_frame()]`: `frames` holds one
     /// frame per axis (indexed by [`Axis::index`]), present exactly for the driven
     /// lines, all of the configured size.
+    #[inline]
     pub fn encode(&self, frames: &[Option<Frame>; 5], out: &mut [u32]) -> Result<(), TxError> {
         // In axis order, so the first misfit is the error.
         let words = [
@@ -261,6 +271,25 @@ impl Transmitter {
             self.line_word(Axis::W, frames)?,
         ];
         let out = self.slot(out)?;
+        self.fill_words(words, out);
+        Ok(())
+    }
+
+    /// Writes one frame period of already encoded wire words (right-aligned, one per
+    /// axis indexed by [`Axis::index`], of the configured size, bits above it
+    /// ignored; words of lines without a pin are ignored) into
+    /// `out[..ticks_per_frame()]`, for a caller that built and checked the frames
+    /// itself (the bridge's head encoder).
+    pub fn encode_words(&self, words: [u32; 5], out: &mut [u32]) -> Result<(), TxError> {
+        let out = self.slot(out)?;
+        self.fill_words(words, out);
+        Ok(())
+    }
+
+    /// [`Self::fill`] for the configured size and lines. Out of line: the same for
+    /// every caller, while the frame checks inline.
+    #[inline(never)]
+    fn fill_words(&self, words: [u32; 5], out: &mut [u32]) {
         // One copy of the bit loop per frame size, so it unrolls with constant shifts,
         // and per "U or W driven", so the common X Y Z head skips two idle lines.
         match (self.size, self.wide) {
@@ -269,7 +298,6 @@ impl Transmitter {
             (FrameSize::Bits32, false) => self.fill::<32, false>(words, out),
             (FrameSize::Bits32, true) => self.fill::<32, true>(words, out),
         }
-        Ok(())
     }
 
     /// The wire word of `axis`' line (right-aligned); 0 if the line is not driven.
@@ -289,56 +317,67 @@ impl Transmitter {
 
     /// Writes the set-up word, the `2 * BITS` bit words of the right-aligned `words`,
     /// SYNC's rise and the idle tail; `out` is exactly one frame period (at least
-    /// `2 * BITS + 2` words). Without `WIDE` the U and W words are 0 (not driven).
-    ///
-    /// Six bit times at a time: each line's next six bits are spread five places apart
-    /// ([`SPREAD6`]) and the lines merged one place apart, so that bits `5k + 4 ..= 5k`
-    /// of the merged word are the pattern index (X in bit 4 … W in bit 0) of the
-    /// group's bit time `5 - k`; then each bit time is one field extract, one table
-    /// look-up and two stores.
+    /// `2 * BITS + 2` words). Without `WIDE` the U and W words are 0 (not driven) and
+    /// the shared three-line loop (`xy2::tx::lanes`) does X, Y and Z.
     #[inline(always)]
     fn fill<const BITS: usize, const WIDE: bool>(&self, words: [u32; 5], out: &mut [u32]) {
         // MSB-aligned: the first bit on the line in bit 31.
         let [a, b, c, d, e] = words.map(|w| w << (32 - BITS));
-        let clk_reset = reset(self.clk);
+        let clk_reset = self.clk << 16;
         let Some((setup, rest)) = out.split_first_mut() else {
             return;
         };
         let (pairs, _) = rest.as_chunks_mut::<2>();
-        let Some(pairs) = pairs.get_mut(..BITS) else {
+        let Some(pairs) = pairs.first_chunk_mut::<BITS>() else {
             return;
         };
-        let lut = &self.lut;
-        let mut t = 0;
-        for g in 0..BITS.div_ceil(6) {
-            // The group's six bits of a line: bits `31 - 6g ..= 26 - 6g`; the last group
-            // of a 32-bit frame has only two, shifted to the top of the field.
-            let spread = |w: u32| {
-                let six = if 6 * g <= 26 {
-                    w >> (26 - 6 * g)
-                } else {
-                    w << (6 * g - 26)
-                };
-                SPREAD6.get((six & 63) as usize).copied().unwrap_or(0)
-            };
-            let mut merged = spread(a) << 4 | spread(b) << 3 | spread(c) << 2;
-            if WIDE {
-                merged |= spread(d) << 1 | spread(e);
-            }
-            for k in (0..6).rev() {
-                if let Some(pair) = pairs.get_mut(t) {
-                    let rising = lut.get((merged >> (5 * k) & 31) as usize);
-                    *pair = [rising.copied().unwrap_or(0), clk_reset];
-                }
-                t += 1;
-            }
+        if WIDE {
+            wide(&self.lut, clk_reset, [a, b, c, d, e], pairs);
+        } else if let Some(patterns) = self.lut.first_chunk::<8>() {
+            lanes::fill(patterns, clk_reset, [a, b, c], pairs);
         }
         // Set-up word: SYNC falls with bit 0's data in place, CLK still low.
-        let first = pairs.first().map_or(0, |p| p[0] & !set(self.clk));
-        *setup = reset(self.sync) | clk_reset | first;
+        let first = pairs.first().map_or(0, |p| p[0] & !self.clk);
+        *setup = self.sync << 16 | clk_reset | first;
         if let Some((rise, idle)) = rest.get_mut(2 * BITS..).and_then(|t| t.split_first_mut()) {
-            *rise = set(self.sync) | self.data_mask << 16;
-            idle.fill(0);
+            *rise = self.sync | self.data_mask << 16;
+            // Often nothing (the minimum idle): skip the call of a zero-length fill.
+            if !idle.is_empty() {
+                idle.fill(0);
+            }
+        }
+    }
+}
+
+/// The bit words of five lines (MSB-aligned `lines`), six bit times at a time: each
+/// line's next six bits are spread five places apart ([`SPREAD6`]) and the lines
+/// merged one place apart, so that bits `5k + 4 ..= 5k` of the merged word are the
+/// `lut` index (X in bit 0 … W in bit 4) of the group's bit time `5 - k`; then each
+/// bit time is one field extract, one table look-up and the store.
+#[inline(always)]
+fn wide<const BITS: usize>(
+    lut: &[u32; 32],
+    clk_reset: u32,
+    lines: [u32; 5],
+    pairs: &mut [[u32; 2]; BITS],
+) {
+    for (g, group) in pairs.chunks_mut(6).enumerate() {
+        // The group's six bits of a line: bits `31 - 6g ..= 26 - 6g`; the last group
+        // of a 32-bit frame has only two, shifted to the top of the field.
+        let spread = |w: u32| {
+            let six = match 26u32.checked_sub(6 * g as u32) {
+                Some(s) => w >> s,
+                None => w << (6 * g as u32 - 26),
+            };
+            SPREAD6.get((six & 63) as usize).copied().unwrap_or(0)
+        };
+        let merged = lines
+            .iter()
+            .enumerate()
+            .fold(0, |m, (i, &w)| m | spread(w) << i);
+        for (pair, k) in group.iter_mut().zip((0..6u32).rev()) {
+            let rising = lut.get((merged >> (5 * k) & 31) as usize);
+            *pair = [rising.copied().unwrap_or(0), clk_reset];
         }
     }
 }
@@ -362,6 +401,11 @@ const SPREAD6: [u32; 64] = {
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    /// Reset bit of `pin` in the BSRR high half.
+    const fn reset(pin: u8) -> u32 {
+        1 << (pin + 16)
+    }
 
     /// The waveform table of the module docs, bit by bit, for `words` (right-aligned
     /// wire words, 0 for lines not driven).
@@ -421,6 +465,17 @@ mod tests {
             tx.encode(&frames, &mut out).unwrap();
             prop_assert_eq!(&out[..tx.ticks_per_frame()], &reference(&tx, &map, words)[..]);
             prop_assert!(out[tx.ticks_per_frame()..].iter().all(|&w| w == 0xDEAD_BEEF));
+            // The same words given directly, garbage on the lines without a pin.
+            let direct = core::array::from_fn(|i| if data[i].is_some() { words[i] } else { values[i] });
+            let mut out2 = vec![0x5555_AAAA; tx.ticks_per_frame() + 3];
+            tx.encode_words(direct, &mut out2).unwrap();
+            prop_assert_eq!(&out2[..tx.ticks_per_frame()], &out[..tx.ticks_per_frame()]);
+            prop_assert!(out2[tx.ticks_per_frame()..].iter().all(|&w| w == 0x5555_AAAA));
+            let short = tx.ticks_per_frame() - 1;
+            prop_assert_eq!(
+                tx.encode_words(direct, &mut out2[..short]),
+                Err(TxError::BufferTooShort { needed: tx.ticks_per_frame(), got: short })
+            );
         }
     }
 }
