@@ -9,18 +9,21 @@
 //! * `Channel` for queues where every item matters (raw input halves).
 //! * Relaxed atomics for statistics counters (read once a second, no ordering needed).
 //!
-//! All use `CriticalSectionRawMutex`: senders include the high-priority
-//! `InterruptExecutor` tasks (`tasks::line`).
+//! All use `CriticalSectionRawMutex`: senders and receivers run in three priorities
+//! (thread mode, the decode executor, the line executor; README "Tasks and
+//! executors"), which preempt each other.
 //!
-//! Flow (`[H]` = high-priority executor, others thread mode):
+//! Flow (`[H]` = line executor (UART8, P6), `[D]` = decode executor (UART5, P8),
+//! others thread mode):
 //! ```text
 //! [H] xy2_in --RAW_INPUT--> [H] bridge_wave_out <--XY3_INPUT-- [H] xy3_in
 //!     (receiver -> Bridge -> transmitter -> waveform ring; LASER_GATE, BRIDGE_BEAT,
 //!      LINK_RUNNING, CTRL_STATUS_OK)
 //! [H] xy2_in / xy3_in --> [H] bridge_hans_out (same inputs; HANS-100 head)
 //! [H] bridge_* --XY3_RESYNC (session)--> [H] xy3_in (lines out of step: restart)
-//! [H] hans_status_in --HANS_STATUS_RAW--> hans_status --HEAD_STATUS--> bridge
-//! [H] hans_in --HANS_INPUT--> hans_decode --HANS_EVENTS--> [H] bridge loops
+//! [H] hans_status_in --HANS_STATUS_RAW--> [D] hans_status --HEAD_STATUS--> bridge
+//! [H] hans_in --HANS_INPUT--> [D] hans_decode --HANS_EVENTS--> [H] bridge loops
+//! [D] hans_decode, hans_status <--> DECODE_GOVERNOR (decode / drop / pause)
 //! [H] bridge loops --HANS_STATUS_OUT (frames)--> [H] hans_status_out (SAI2 B)
 //! status_level_in / back_from_head --HEAD_STATUS--> bridge_wave_out, stats
 //! bridge_wave_out --BACK_TX (bytes), BACK_RATE--> back_to_controller (UART7)
@@ -42,6 +45,7 @@ use embassy_sync::pipe::Pipe;
 use embassy_sync::signal::Signal;
 use embassy_sync::watch::Watch;
 use shared::bridge::{Counters, LinkState};
+use shared::governor::Governor;
 use shared::model::{Alarms, HeadStatus, LineEvent};
 use shared::xy3::BackRate;
 
@@ -112,13 +116,24 @@ pub static XY3_RESYNC: Signal<CriticalSectionRawMutex, u32> = Signal::new();
 /// bridge waits for output space; a fourth would only hide a slow bridge.
 pub static RAW_INPUT: Channel<CriticalSectionRawMutex, RawInput, 3> = Channel::new();
 
-/// One half of the HANS-100 STATUS input (head side, SPI6 at `fs`), for the
-/// thread-mode decoder.
-pub type HansStatusRaw = [u16; HANS_HALF];
+/// One half of the HANS-100 STATUS input (head side, SPI6 at `fs`), for the decoder
+/// in the decode executor.
+#[derive(Clone)]
+pub struct HansStatusRaw {
+    /// Number of this half in the SPI6 stream: two halves with consecutive numbers
+    /// are contiguous signal (a ring overrun skips a number), so the decoder may
+    /// keep its receiver across them.
+    pub half: u32,
+    /// When the half was complete (`embassy_time::Instant` ticks): its age is the
+    /// decode governor's backlog.
+    pub ready: u64,
+    /// The words, in time order.
+    pub words: [u16; HANS_HALF],
+}
 
-/// HANS STATUS halves to `status::hans_status` (thread mode: its decoder is too slow
-/// for the high-priority executor, see README "What is left"). Only every
-/// `line::HANS_STATUS_EVERY`-th half is sent; a full queue drops the half.
+/// HANS STATUS halves to `status::hans_status` (decode executor, under the
+/// [`DECODE_GOVERNOR`] as optional work). Only every `line::hans_status_every`-th
+/// half is sent; a full queue drops the half (counted in `input_overruns`).
 pub static HANS_STATUS_RAW: Channel<CriticalSectionRawMutex, HansStatusRaw, 1> = Channel::new();
 
 /// Backchannel rate to switch the controller side (UART7 TX) to (XY3-100 §6):
@@ -231,12 +246,38 @@ pub struct Stats {
     /// XY2 STATUS word input realigned to the output after an output underrun or a
     /// status ring overrun.
     pub status_realigns: AtomicU32,
+    /// HANS-100 controller input halves decoded (decode executor).
+    pub decoded_halves: AtomicU32,
+    /// HANS-100 controller input halves the decode governor dropped as stale.
+    pub decode_drops: AtomicU32,
+    /// HANS STATUS halves decoded (decode executor).
+    pub status_decoded: AtomicU32,
+    /// HANS STATUS halves the decode governor dropped (no spare credit, or stale).
+    pub status_drops: AtomicU32,
+    /// Pauses the decode governor imposed on the decoders.
+    pub decode_pauses: AtomicU32,
+    /// Time spent in those pauses, microseconds.
+    pub decode_paused_us: AtomicU32,
+    /// Time the decoders were busy (their work and what preempted it), microseconds.
+    pub decode_busy_us: AtomicU32,
+    /// Longest busy time of one half, microseconds (maximum since the last summary).
+    pub decode_busy_max_us: AtomicU32,
 }
 
 impl Stats {
     /// Adds one to a counter.
     pub fn bump(counter: &AtomicU32) {
         counter.fetch_add(1, Ordering::Relaxed);
+    }
+
+    /// Adds `n` to a counter.
+    pub fn add(counter: &AtomicU32, n: u32) {
+        counter.fetch_add(n, Ordering::Relaxed);
+    }
+
+    /// Raises a maximum to `n`.
+    pub fn raise(counter: &AtomicU32, n: u32) {
+        counter.fetch_max(n, Ordering::Relaxed);
     }
 
     /// Reads and zeroes a counter.
@@ -260,6 +301,14 @@ pub static STATS: Stats = Stats {
     status_faults: AtomicU32::new(0),
     output_refused: AtomicU32::new(0),
     status_realigns: AtomicU32::new(0),
+    decoded_halves: AtomicU32::new(0),
+    decode_drops: AtomicU32::new(0),
+    status_decoded: AtomicU32::new(0),
+    status_drops: AtomicU32::new(0),
+    decode_pauses: AtomicU32::new(0),
+    decode_paused_us: AtomicU32::new(0),
+    decode_busy_us: AtomicU32::new(0),
+    decode_busy_max_us: AtomicU32::new(0),
 };
 
 // HANS-100 controller side (`tasks/hans_in.rs`, `tasks/hans_status_out.rs`).
@@ -276,21 +325,26 @@ pub struct HansRaw {
     pub session: u32,
     /// Ring word count of `words[..][0]` within the session.
     pub first_word: u32,
+    /// When the half was complete (`embassy_time::Instant` ticks): its age is the
+    /// decode governor's backlog (it also covers halves lost on a full queue).
+    pub ready: u64,
     /// `HANS_IN_HALF` words per channel, indexed by channel number - 1; channels the
     /// decode mode does not use stay zero and are not read.
     pub words: [[u16; HANS_IN_HALF]; 5],
 }
 
-/// HANS-100 controller halves from `hans_in` to the thread-mode decoder
-/// (`hans_decode`). A full queue drops the half (the decoder sees the gap in
+/// HANS-100 controller halves from `hans_in` to the decoder in the decode executor
+/// (`hans_decode`). A full queue drops the newest half (the decoder sees the gap in
 /// `first_word`), so a decoder that cannot keep up loses input, counted, instead of
-/// delaying the line tasks.
+/// delaying the line tasks; the [`DECODE_GOVERNOR`] drops the oldest ones before
+/// that happens (halves older than its age limit).
 pub static HANS_INPUT: Channel<CriticalSectionRawMutex, HansRaw, 2> = Channel::new();
 
 /// Decoded HANS-100 controller events to the bridge loop, which drains them every
 /// output batch (or slot), each with its word position in the input stream (for
-/// spreading over the output slots). The decoder waits while it is full: the
-/// bridge paces it.
+/// spreading over the output slots; `hans_in::take_events`). The decoder waits
+/// while it is full: the bridge paces it (that wait is not busy time for the
+/// governor: the decode executor idles meanwhile).
 pub static HANS_EVENTS: Channel<CriticalSectionRawMutex, (u32, LineEvent), HANS_EVENTS_DEPTH> =
     Channel::new();
 
@@ -301,3 +355,12 @@ pub const HANS_EVENTS_DEPTH: usize = 64;
 /// kept full by the bridge loop, written into the SAI2 ring by `hans_status_out`.
 pub static HANS_STATUS_OUT: Channel<CriticalSectionRawMutex, shared::hans::Frame, 8> =
     Channel::new();
+
+/// The load governor both HANS-100 decoders in the decode executor answer to
+/// (`tasks::governor`: controller input as essential work, head STATUS as optional
+/// work), so together they never take more than its share of the core and thread
+/// mode (the supervisor feeding the watchdog) always runs. Only the decode executor
+/// touches it; the mutex makes the static shareable, its critical section is a few
+/// instructions.
+pub static DECODE_GOVERNOR: Mutex<CriticalSectionRawMutex, RefCell<Governor>> =
+    Mutex::new(RefCell::new(crate::tasks::governor::GOVERNOR));

@@ -3,9 +3,10 @@
 //!
 //! Boot: [`board::init`] forces the laser gate off, records the reset cause, sets up
 //! power, clocks, SRAM and the I-cache. Then the thread-mode tasks start (supervisor
-//! with watchdog and laser gate, LEDs, statistics, status paths), and the
-//! high-priority `InterruptExecutor` takes the line tasks for the roles of the
-//! configuration baked in at build time ([`config::load`], from `bridge.toml`). Every
+//! with watchdog and laser gate, LEDs, statistics, status paths), the high-priority
+//! line `InterruptExecutor` takes the line tasks for the roles of the configuration
+//! baked in at build time ([`config::load`], from `bridge.toml`), and the
+//! medium-priority decode `InterruptExecutor` the HANS-100 decoders. Every
 //! output starts idle and the gate stays off until valid input frames arrive -- after
 //! a watchdog reset too, because this is the only boot path. A configuration that
 //! fails to load leaves the bridge in that safe state.
@@ -36,14 +37,34 @@ use tasks::{bridge, bridge_hans, hans_in, hans_status_out, line, status};
 static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
 
 /// Priority of the line tasks: below the DMA interrupts (P0, embassy's default), which
-/// only record progress and wake these tasks, above thread mode.
+/// only record progress and wake these tasks, above the decode executor and thread
+/// mode.
 const LINE_PRIORITY: Priority = Priority::P6;
+
+/// Runs the HANS-100 decoders (controller input, head STATUS) at interrupt priority,
+/// under the load governor (`tasks::governor`). UART5 is unused on this board, so its
+/// vector serves as the executor's software interrupt.
+static EXECUTOR_DECODE: InterruptExecutor = InterruptExecutor::new();
+
+/// Priority of the decoders: below the line tasks (numerically higher: on the
+/// Cortex-M a lower number preempts), so every output refill preempts a decode, and
+/// above thread mode, so the decoders' latency does not depend on thread-mode work.
+/// The governor keeps them from starving thread mode. P8 leaves P7 free for
+/// anything that must sit between the two.
+const DECODE_PRIORITY: Priority = Priority::P8;
 
 #[interrupt]
 unsafe fn UART8() {
     // SAFETY: UART8's vector is used for nothing else; `on_interrupt` must only run
     // from the interrupt given to `start`, which is this one.
     unsafe { EXECUTOR_HIGH.on_interrupt() }
+}
+
+#[interrupt]
+unsafe fn UART5() {
+    // SAFETY: UART5's vector is used for nothing else; `on_interrupt` must only run
+    // from the interrupt given to `start`, which is this one.
+    unsafe { EXECUTOR_DECODE.on_interrupt() }
 }
 
 #[embassy_executor::main]
@@ -91,6 +112,8 @@ async fn main(spawner: Spawner) {
 
     interrupt::UART8.set_priority(LINE_PRIORITY);
     let high = EXECUTOR_HIGH.start(interrupt::UART8);
+    interrupt::UART5.set_priority(DECODE_PRIORITY);
+    let decode = EXECUTOR_DECODE.start(interrupt::UART5);
 
     // Head-side drivers stay off until an output DMA plays its idle pattern.
     let head_enable = Output::new(r.head_enable, Level::Low, Speed::Low);
@@ -167,15 +190,15 @@ async fn main(spawner: Spawner) {
             if matches!(mode, HansMode::Vote5 | HansMode::Super) {
                 // README "Tasks and executors", HANS-100 controller cost.
                 defmt::warn!(
-                    "hans in: {} costs 4200..4400 instructions per 10 us frame (QEMU), \
-                     more than the core has left: expect dropped input halves",
+                    "hans in: {} costs 3900..4100 instructions per 10 us frame (QEMU), \
+                     more than the decode governor allows: expect dropped input halves",
                     mode
                 );
             }
             if let Some(fs) = fs_ctrl {
                 high.spawn(hans_in::hans_in(r.xy3_in, r.hans_in, fs, mode).unwrap());
             }
-            spawner.spawn(hans_in::hans_decode(mode).unwrap());
+            decode.spawn(hans_in::hans_decode(mode).unwrap());
             high.spawn(hans_status_out::hans_status_out(r.hans_status_out, r.ctrl_status).unwrap());
             // The pair-6 driver is always on: it carries the HANS STATUS stream.
             core::mem::forget(Output::new(r.back.de, Level::High, Speed::Low));
@@ -226,9 +249,11 @@ async fn main(spawner: Spawner) {
                 bridge_hans::bridge_hans_out(r.hans_out, config, roles.controller, head_enable);
             high.spawn(hans.unwrap());
             if let Some(fs) = fs_status {
-                high.spawn(line::hans_status_in(r.hans_status_in, fs).unwrap());
+                let every = line::hans_status_every(hans_ctrl);
+                defmt::info!("hans status in: every {} half decoded", every);
+                high.spawn(line::hans_status_in(r.hans_status_in, fs, every).unwrap());
             }
-            spawner.spawn(status::hans_status().unwrap());
+            decode.spawn(status::hans_status().unwrap());
         }
     }
 }

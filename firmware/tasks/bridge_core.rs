@@ -52,7 +52,7 @@ enum Decoder {
     Xy2(xy2::rx::Receiver),
     /// XY3-100 SPI bytes and frame-end marks ([`XY3_INPUT`]).
     Xy3(Xy3Decoder),
-    /// HANS-100: events already decoded by `hans_in::hans_decode` (thread mode).
+    /// HANS-100: events already decoded by `hans_in::hans_decode` (decode executor).
     Hans,
 }
 

@@ -3,30 +3,35 @@
 //! [`LineEvent`]s.
 //!
 //! Two tasks, because the receiver is the most expensive code of the firmware
-//! (README "Measured figures": about 2 000 instructions per 10 us frame in normal
-//! mode, 3 250 for vote3, 4 250 for vote5 / super, against 4 800 cycles per frame
-//! at 480 MHz):
-//! * [`hans_in`] (high-priority executor) only moves DMA halves into
-//!   [`HANS_INPUT`], like the other line tasks;
-//! * [`hans_decode`] (thread mode) decodes them and queues the events in
-//!   [`HANS_EVENTS`], which the bridge loop drains like the XY2 / XY3 receivers'
-//!   events ([`take_events`], called from `bridge_core`).
+//! (README "Measured figures": about 1 950 instructions per 10 us frame in normal
+//! mode, 3 110 for vote3, 3 920..4 080 for vote5 / super, against 4 800 cycles per
+//! frame at 480 MHz):
+//! * [`hans_in`] (line executor) only moves DMA halves into [`HANS_INPUT`], like the
+//!   other line tasks;
+//! * [`hans_decode`] (decode executor, below the line executor and above thread
+//!   mode) decodes them and queues the events in [`HANS_EVENTS`], which the bridge
+//!   loop drains like the XY2 / XY3 receivers' events ([`take_events`], called from
+//!   `bridge_core`).
 //!
 //! Decoding in the bridge loop, as for XY2 / XY3, would block it for a whole half
 //! (about 100 us in normal mode, 200 us in super mode): the HANS-100 head loop must
 //! write a slot every 10 us and the waveform loop has one queued batch of slack. In
-//! thread mode both output loops preempt the decoder, so a decoder that cannot keep
-//! up loses input halves (counted; the bridge sees the gaps as faults and its input
-//! timeout decides) instead of starving the outputs, and it yields after every half
-//! so the supervisor still feeds the watchdog.
+//! the decode executor both output loops preempt the decoder, and the decoder
+//! preempts thread mode, so its latency does not depend on thread-mode work. The
+//! load governor (`super::governor`) keeps it from starving thread mode when it
+//! cannot keep up: it pauses the decoder beyond its share of the core and drops
+//! halves that waited too long (counted; the bridge sees the gaps as faults and its
+//! input timeout decides).
 
 use embassy_futures::yield_now;
-use embassy_time::Timer;
+use embassy_time::{Instant, Timer};
 use heapless::Vec;
 use shared::bridge::HansDecode;
+use shared::governor::Class;
 use shared::hans::rx::{HansRx, Mode};
 use shared::model::{FaultKind, Line, LineEvent};
 
+use super::governor::{self, Busy};
 use super::Irqs;
 use crate::board::{HansInRes, Xy3InRes, HANS_FS_HZ};
 use crate::channels::{
@@ -93,12 +98,14 @@ async fn hans_session(
     let mut raw = HansRaw {
         session,
         first_word: 0,
+        ready: 0,
         words: [[0; HANS_IN_HALF]; CHANNELS],
     };
     loop {
         if let Err(e) = lines.read(&mut raw.words).await {
             return e;
         }
+        raw.ready = Instant::now().as_ticks();
         // Never wait for the decoder: a full queue loses this half (the decoder
         // sees the gap in `first_word`).
         if HANS_INPUT.try_send(raw.clone()).is_ok() {
@@ -119,12 +126,13 @@ struct Decoder {
     next_word: u32,
 }
 
-/// HANS-100 controller decoder (thread mode, see the module docs): each half from
-/// [`HANS_INPUT`] goes through `HansRx` in `mode` ([`CHUNK`] words at a time) and
-/// the events go to [`HANS_EVENTS`] in order. A half that does not continue the
-/// last one (a new session, or halves lost while the decoder was behind) starts a
-/// fresh receiver, reported as a `Dropped` fault on the framing line: the receiver's
-/// timing is only valid on a continuous stream.
+/// HANS-100 controller decoder (decode executor, see the module docs): each half
+/// from [`HANS_INPUT`] the governor admits goes through `HansRx` in `mode`
+/// ([`CHUNK`] words at a time) and the events go to [`HANS_EVENTS`] in order. A half
+/// that does not continue the last decoded one (a new session, or halves lost on a
+/// full queue or dropped by the governor) starts a fresh receiver, reported as a
+/// `Dropped` fault on the framing line: the receiver's timing is only valid on a
+/// continuous stream.
 #[embassy_executor::task]
 pub async fn hans_decode(mode: Mode) {
     let fresh = || HansRx::new(HANS_FS_HZ, mode);
@@ -143,6 +151,11 @@ pub async fn hans_decode(mode: Mode) {
     let mut events: Vec<(u32, LineEvent), CHUNK_EVENTS> = Vec::new();
     loop {
         let raw = HANS_INPUT.receive().await;
+        // Pauses here while over its share of the core; a dropped half leaves
+        // `next_word` behind, so the next decoded one reports the gap.
+        if !governor::admit(Class::Essential, raw.ready).await {
+            continue;
+        }
         if dec.session != Some(raw.session) || raw.first_word != dec.next_word {
             if dec.session.is_some() {
                 let gap = LineEvent::Fault {
@@ -157,6 +170,7 @@ pub async fn hans_decode(mode: Mode) {
             dec.session = Some(raw.session);
         }
         dec.next_word = raw.first_word.wrapping_add(HANS_IN_HALF as u32);
+        let mut busy = Busy::new();
         for at in (0..HANS_IN_HALF).step_by(CHUNK) {
             let chunk = |n: usize| {
                 raw.words
@@ -168,19 +182,22 @@ pub async fn hans_decode(mode: Mode) {
             // Each event with its word position in the input stream (the bridge
             // loop spreads them over its output slots by it).
             let base = raw.first_word.wrapping_add(at as u32);
-            dec.rx.push_at(&chunks, &mut |pos, ev| {
-                let word = base.wrapping_add(pos as u32);
-                if events.push((word, ev.to_line_event())).is_err() {
-                    // Not reachable (CHUNK_EVENTS bounds a chunk), but never silent.
-                    Stats::bump(&STATS.input_overruns);
-                }
+            busy.run(|| {
+                dec.rx.push_at(&chunks, &mut |pos, ev| {
+                    let word = base.wrapping_add(pos as u32);
+                    if events.push((word, ev.to_line_event())).is_err() {
+                        // Not reachable (CHUNK_EVENTS bounds a chunk), but never silent.
+                        Stats::bump(&STATS.input_overruns);
+                    }
+                })
             });
             for ev in events.drain(..) {
                 HANS_EVENTS.send(ev).await;
             }
         }
+        busy.report(Class::Essential);
         // `receive` does not yield when the next half is already queued: let the
-        // other thread-mode tasks (the supervisor feeding the watchdog) run.
+        // HANS STATUS decoder on the same executor have its turn.
         yield_now().await;
     }
 }

@@ -18,7 +18,7 @@
 //!
 //! Runs in the high-priority executor: writing a slot two ahead of the DMA is only
 //! safe if nothing but the DMA interrupts can delay the write by a slot period
-//! (10 us); the thread-mode decoders could.
+//! (10 us); the HANS-100 decoders (decode executor, below it) could.
 
 use embassy_stm32::peripherals::PA0;
 use embassy_stm32::Peri;

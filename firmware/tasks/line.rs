@@ -1,6 +1,6 @@
-//! High-priority line tasks, run by the `InterruptExecutor` (`main.rs`): one task per
-//! receiver moves each DMA half-buffer towards the bridge loops ([`super::bridge`],
-//! [`super::bridge_hans`]) or the HANS STATUS decoder. Each loop iteration is one DMA
+//! High-priority line tasks, run by the line `InterruptExecutor` (`main.rs`): one task
+//! per receiver moves each DMA half-buffer towards the bridge loops ([`super::bridge`],
+//! [`super::bridge_hans`]) or the HANS STATUS decoder (decode executor). Each loop iteration is one DMA
 //! half, so these tasks preempt everything in thread mode but never block each other
 //! for longer than one half's work.
 
@@ -9,13 +9,14 @@ use core::sync::atomic::Ordering;
 use embassy_stm32::gpio::{Level, Output, Speed};
 use embassy_stm32::peripherals::PG8;
 use embassy_stm32::{pac, Peri};
+use embassy_time::Instant;
 
 use super::ctrl_word::{self, CtrlWord};
 use super::Irqs;
 use crate::board::{HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes};
 use crate::channels::{
-    RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_RAW, RAW_INPUT, STATS, XY2_HALF, XY3_HALF,
-    XY3_INPUT, XY3_LINES, XY3_MARKS, XY3_RESYNC,
+    HansStatusRaw, RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_RAW, RAW_INPUT, STATS, XY2_HALF,
+    XY3_HALF, XY3_INPUT, XY3_LINES, XY3_MARKS, XY3_RESYNC,
 };
 use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::{Instance, RxError, SpiSlaveRx};
@@ -268,20 +269,42 @@ async fn xy3_session(
     }
 }
 
-/// Every how many SPI6 halves one goes to the STATUS decoder. `shared`'s HANS-100
-/// receiver costs about 2 000 instructions per frame on one channel (QEMU count,
-/// `shared::hans::rx` module docs), some 40 % of the core if every half were decoded,
-/// so the thread-mode decoder takes one contiguous half in eight: the head's status
-/// is refreshed every 1.6 ms from about 18 frames (a fresh receiver locks within the
-/// first two), at about 5 % of the CPU.
-pub const HANS_STATUS_EVERY: u32 = 8;
+/// Every how many SPI6 halves one goes to the STATUS decoder, by what else the
+/// decode executor carries. `shared`'s HANS-100 receiver costs ~1 950 instructions
+/// per frame on one channel as the firmware feeds it (QEMU, README "Measured
+/// figures"): 41 % of the 4 800 cycles of a 10 us frame at one instruction a cycle.
+/// * Without a HANS-100 controller: **every half** (1). The decoder is then the
+///   decode executor's only work; the line executor (an XY2-100 or XY3-100 receiver,
+///   the bridge, the HANS-100 slot updates: ~1 450 a frame, 30 %) preempts it, so it
+///   is busy ~58 % of the time, under the governor's 90 %
+///   (`governor::SHARE_PERMILLE`). Consecutive halves are contiguous signal, so one
+///   receiver runs on and every frame is decoded.
+/// * With a HANS-100 controller (HANS-100 -> HANS-100): **every second half** (2).
+///   Its input decoder takes 41 % in normal mode and the line executor ~17 %
+///   (bridge, slot updates, HANS STATUS out); the STATUS decoder adds 20 %: the
+///   decode executor is busy ~73 % of the time, under the 90 %. Every half (81 % +
+///   17 %, busy ~98 %) would not fit. Each half decoded starts a fresh receiver (the
+///   halves in between are skipped), so the head's status is at most two halves
+///   (410 us) plus a decode old. With vote3 (~65 %) the two together are over the
+///   share, and vote5 / super alone: the governor drops STATUS halves first
+///   (optional work) but decodes one at least every 1.6 ms.
+///
+/// Below ~1 700 instructions per frame (busy ~85 %), 1 fits both pairings.
+pub const fn hans_status_every(hans_controller: bool) -> u32 {
+    if hans_controller {
+        2
+    } else {
+        1
+    }
+}
 
 /// HANS-100 STATUS input (head side): `fs` (TIM3 CH2) is the oversampling clock that
 /// clocks SPI6 through a wire from PC7 to PB3; SPI6 receives 16-bit words into a
-/// BDMA ring in SRAM4. Every [`HANS_STATUS_EVERY`]-th half goes to the thread-mode
-/// decoder (`status::hans_status`, via [`HANS_STATUS_RAW`]).
+/// BDMA ring in SRAM4. Every `every`-th half ([`hans_status_every`]) goes to the
+/// STATUS decoder in the decode executor (`status::hans_status`, via
+/// [`HANS_STATUS_RAW`]), numbered so the decoder knows which halves are contiguous.
 #[embassy_executor::task]
-pub async fn hans_status_in(r: HansStatusInRes, fs: Fs) {
+pub async fn hans_status_in(r: HansStatusInRes, fs: Fs, every: u32) {
     let mut fs = fs;
     fs.run();
     let ring = dma_ring!(".sram4", u16, 2 * HANS_HALF);
@@ -294,21 +317,29 @@ pub async fn hans_status_in(r: HansStatusInRes, fs: Fs) {
             return;
         }
     };
-    let mut half = [0u16; HANS_HALF];
-    let mut n = 0u32;
+    let every = every.max(1);
+    let mut raw = HansStatusRaw {
+        half: 0,
+        ready: 0,
+        words: [0u16; HANS_HALF],
+    };
     loop {
-        match rx.read_exact(&mut half).await {
+        match rx.read_exact(&mut raw.words).await {
             Ok(()) => {
                 Stats::bump(&STATS.input_halves);
-                n = n.wrapping_add(1);
+                raw.half = raw.half.wrapping_add(1);
+                raw.ready = Instant::now().as_ticks();
                 // A full queue means the decoder is still on the last one: skip.
-                if n.is_multiple_of(HANS_STATUS_EVERY) && HANS_STATUS_RAW.try_send(half).is_err() {
+                if raw.half.is_multiple_of(every) && HANS_STATUS_RAW.try_send(raw.clone()).is_err()
+                {
                     Stats::bump(&STATS.input_overruns);
                 }
             }
             Err(e) => {
                 defmt::warn!("hans status in: {}", e);
                 Stats::bump(&STATS.input_overruns);
+                // The signal lost here breaks contiguity: skip a number.
+                raw.half = raw.half.wrapping_add(1);
             }
         }
     }

@@ -1,15 +1,19 @@
-//! Tasks. Thread mode (this file, [`stats`], [`status`] and
-//! [`hans_in::hans_decode`]): the supervisor (watchdog, laser gate, health), the
-//! status LEDs, the once-a-second statistics, the status paths and the HANS-100
-//! controller decoder. High priority ([`line`], [`bridge`], run by the `InterruptExecutor` in
-//! `main.rs`): the per-DMA-half receive -> bridge -> transmit loop. Thread-mode tasks may be slow
-//! without affecting the line timing.
+//! Tasks, in three priorities (README "Tasks and executors"). Thread mode (this
+//! file, [`stats`], most of [`status`]): the supervisor (watchdog, laser gate,
+//! health), the status LEDs, the once-a-second statistics, the slow status paths.
+//! Decode executor (medium priority, `main.rs`): the HANS-100 decoders
+//! ([`hans_in::hans_decode`], [`status::hans_status`]) under the load governor
+//! ([`governor`]), which keeps them from starving thread mode. Line executor (high
+//! priority, [`line`], [`bridge`], [`bridge_hans`]): the per-DMA-half receive ->
+//! bridge -> transmit loops. Thread-mode tasks may be slow without affecting the
+//! line timing or the decoders.
 
 pub mod bridge;
 mod bridge_core;
 pub mod bridge_hans;
 mod ctrl_word;
 mod encode;
+pub mod governor;
 pub mod hans_in;
 pub mod hans_status_out;
 mod head_word;

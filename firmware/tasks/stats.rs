@@ -88,6 +88,39 @@ fn print_bridge(s: &BridgeSnapshot, before: &Counters) {
     }
 }
 
+/// The decode executor's second (HANS-100 decoders and their load governor), if it
+/// did anything: halves decoded and dropped per decoder, the governor's pauses, and
+/// the busy time (the share of the second, and the longest half).
+fn print_decode() {
+    let s = &STATS;
+    let decoded = Stats::take(&s.decoded_halves);
+    let drops = Stats::take(&s.decode_drops);
+    let status = Stats::take(&s.status_decoded);
+    let status_drops = Stats::take(&s.status_drops);
+    let pauses = Stats::take(&s.decode_pauses);
+    let paused_us = Stats::take(&s.decode_paused_us);
+    let busy_us = Stats::take(&s.decode_busy_us);
+    let busy_max_us = Stats::take(&s.decode_busy_max_us);
+    if decoded + drops + status + status_drops + pauses == 0 {
+        return;
+    }
+    // Per mille of the second (the ticker's period).
+    let busy_permille = busy_us / 1_000;
+    defmt::info!(
+        "1 s decode: input {} halves ({} dropped), status {} halves ({} dropped), \
+         {} pauses ({} us), busy {}.{} % (longest half {} us)",
+        decoded,
+        drops,
+        status,
+        status_drops,
+        pauses,
+        paused_us,
+        busy_permille / 10,
+        busy_permille % 10,
+        busy_max_us,
+    );
+}
+
 /// Once a second: a defmt summary of what the line tasks counted, the head's alarms
 /// and the bridge's own counters, link state and alarms.
 #[embassy_executor::task]
@@ -122,6 +155,7 @@ pub async fn stats() {
             Stats::take(&s.status_faults),
             alarms,
         );
+        print_decode();
         match with_timeout(SNAPSHOT_WAIT, BRIDGE_SNAPSHOT.wait()).await {
             Ok(snap) => {
                 print_bridge(&snap, &before);

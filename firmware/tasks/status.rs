@@ -1,8 +1,10 @@
-//! Thread-mode status tasks: the XY3-100 backchannel (one UART per side), the XY2-100
-//! STATUS level (head side in, controller side out) and the HANS-100 STATUS decoder
-//! (head side). Status is slow (packets every
-//! few milliseconds, a level that changes rarely), so none of this needs the
-//! high-priority executor.
+//! Status tasks: the XY3-100 backchannel (one UART per side) and the XY2-100 STATUS
+//! level (head side in, controller side out) in thread mode: status is slow (packets
+//! every few milliseconds, a level that changes rarely), so none of this needs an
+//! interrupt executor. The HANS-100 STATUS decoder (head side) runs in the decode
+//! executor under the load governor (`super::governor`): its receiver costs as much
+//! per frame as the controller input's, and in thread mode it would compete with the
+//! supervisor instead of being governed.
 
 use embassy_futures::select::{select, Either};
 use embassy_stm32::gpio::{Input, Output};
@@ -20,6 +22,9 @@ use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
 use shared::hans::StatusReceiver;
 use shared::model::FaultKind;
 
+use shared::governor::Class;
+
+use super::governor::{self, Busy};
 use crate::board::HANS_FS_HZ;
 use crate::channels::{
     Stats, BACK_RATE, BACK_TX, CTRL_STATUS_OK, HANS_STATUS_RAW, HEAD_BACK_RATE, HEAD_STATUS,
@@ -135,40 +140,58 @@ pub async fn status_level_out(pin: Output<'static>, level: StatusLevel) {
     }
 }
 
-/// HANS-100 STATUS from the head: decodes the SPI6 halves `line::hans_status_in`
-/// passes on (one in `HANS_STATUS_EVERY`, each a contiguous 205 us of signal) with a
-/// fresh `shared::hans::rx::HansRx` per half (the halves are not contiguous with each
-/// other), applies every frame that passed its checks through
-/// `shared::hans::StatusReceiver` and publishes the head's status to [`HEAD_STATUS`]
-/// when a half gave at least one frame (the bridge counts that as the status being
-/// seen). Frames that failed a check are counted (`status_faults`), never applied.
-/// Runs in thread mode: the decoder is too slow for the high-priority executor.
+/// HANS-100 STATUS from the head (decode executor, optional work for the load
+/// governor): decodes the SPI6 halves `line::hans_status_in` passes on (every
+/// `line::hans_status_every`-th) with `shared::hans::rx::HansRx`, applies every frame
+/// that passed its checks through `shared::hans::StatusReceiver` and publishes the
+/// head's status to [`HEAD_STATUS`] when a half gave at least one frame (the bridge
+/// counts that as the status being seen). Frames that failed a check are counted
+/// (`status_faults`), never applied. The receiver carries over from one half to the
+/// next only when they are contiguous signal (consecutive half numbers: every half is
+/// passed on and none was lost or dropped); otherwise each half starts a fresh one,
+/// which locks within its first frames. The governor decodes a half only with spare
+/// credit, so the controller input decoder keeps its share.
 #[embassy_executor::task]
 pub async fn hans_status() {
     let mode = HansMode::Normal { channel: 1 };
     let mut receiver = StatusReceiver::new();
     let mut status = HeadStatus::default();
+    let mut rx = match HansRx::new(HANS_FS_HZ, mode) {
+        Ok(rx) => rx,
+        Err(e) => {
+            defmt::error!("hans status: {}", e);
+            return;
+        }
+    };
+    // The number the next half must have to continue the decoded signal.
+    let mut next: Option<u32> = None;
     loop {
-        let half = HANS_STATUS_RAW.receive().await;
-        let mut rx = match HansRx::new(HANS_FS_HZ, mode) {
-            Ok(rx) => rx,
-            Err(e) => {
-                defmt::error!("hans status: {}", e);
-                return;
+        let raw = HANS_STATUS_RAW.receive().await;
+        if !governor::admit(Class::Optional, raw.ready).await {
+            continue;
+        }
+        if next != Some(raw.half) {
+            if let Ok(fresh) = HansRx::new(HANS_FS_HZ, mode) {
+                rx = fresh;
             }
-        };
+        }
+        next = Some(raw.half.wrapping_add(1));
         let mut frames = 0u32;
-        rx.push(&[&half], &mut |ev| match ev {
-            RxEvent::Frame(frame) => {
-                receiver.apply(&frame, &mut status);
-                frames += 1;
-            }
-            RxEvent::Fault {
-                kind: FaultKind::CheckFailed,
-                ..
-            } => Stats::bump(&STATS.status_faults),
-            RxEvent::Fault { .. } => {}
+        let mut busy = Busy::new();
+        busy.run(|| {
+            rx.push(&[&raw.words], &mut |ev| match ev {
+                RxEvent::Frame(frame) => {
+                    receiver.apply(&frame, &mut status);
+                    frames += 1;
+                }
+                RxEvent::Fault {
+                    kind: FaultKind::CheckFailed,
+                    ..
+                } => Stats::bump(&STATS.status_faults),
+                RxEvent::Fault { .. } => {}
+            })
         });
+        busy.report(Class::Optional);
         if frames > 0 {
             HEAD_STATUS.sender().send(status.clone());
         }

@@ -12,6 +12,8 @@
 //! - [`xy3`]: XY3-100 forward frames, commands and the RS485 backchannel.
 //! - [`hans`]: the HANS-100 protocol.
 //! - [`bridge`]: the bridge engine (configuration, translation, supervision, status).
+//! - [`governor`]: the load governor that keeps a decoder above thread mode within
+//!   its share of the core.
 //! - [`head_port`]: the board's head-side waveform pins and ticks (firmware and host
 //!   pipeline alike).
 #![cfg_attr(not(test), no_std)]
@@ -19,6 +21,7 @@
 #![forbid(unsafe_code)]
 
 pub mod bridge;
+pub mod governor;
 pub mod hans;
 pub mod head_port;
 pub mod model;
