@@ -466,14 +466,16 @@ impl HansRx {
 
     /// Copies words `at..at + n` of every used channel into the rings.
     fn store(&mut self, chunks: &[&[u16]], at: usize, n: usize) {
+        // Read once: the ring writes could alias these fields for the compiler.
+        let (written, used) = (self.written, self.used);
         for (k, (ring, chunk)) in self.rings.iter_mut().zip(chunks).enumerate() {
-            if self.used & (1 << k) != 0 {
+            if used & (1 << k) != 0 {
                 if let Some(src) = chunk.get(at..at + n) {
-                    ring.write(self.written, src);
+                    ring.write(written, src);
                 }
             }
         }
-        self.written = self.written.wrapping_add(n as u32);
+        self.written = written.wrapping_add(n as u32);
     }
 
     /// The stream word (modulo 4 096) before which every sample the next frame
