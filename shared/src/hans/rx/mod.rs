@@ -99,8 +99,8 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 1 970 instructions per frame for one channel at 3x (1 980 at 4x), 3 110
-//! for vote3 and 3 920 for vote5 / super (5 channels, 3x), against 2 170 / 2 310 /
+//! About 1 970 instructions per frame for one channel at 3x (1 980 at 4x), 3 080
+//! for vote3 and 3 870 for vote5 / super (5 channels, 3x), against 2 170 / 2 310 /
 //! 3 480 / 4 500 before the gather took two windows per step, and 4 400 / 5 200 /
 //! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame at 3x
 //! that is roughly: gathering the reference ~760 (about 44 per 32-sample window,
@@ -108,7 +108,7 @@
 //! for the first time, which a running line stops paying once its phases have all
 //! been seen), its decode 160, the start-edge confirmation ~80, the timing filter
 //! ~70, copying the rings ~5 per word and channel (~120 per channel), per other
-//! channel ~13 per window for the centre compare (~195), and ~600 of per-frame
+//! channel ~12 per window for the centre compare (~190), and ~600 of per-frame
 //! bookkeeping (`frame`, `next`, `evaluate`, `need`) of which ~120 per extra
 //! channel. **Still over the 1 200-instruction budget of the worst path**; what is
 //! left is listed in the README ("Known limits").
@@ -466,14 +466,16 @@ impl HansRx {
 
     /// Copies words `at..at + n` of every used channel into the rings.
     fn store(&mut self, chunks: &[&[u16]], at: usize, n: usize) {
+        // Read once: the ring writes could alias these fields for the compiler.
+        let (written, used) = (self.written, self.used);
         for (k, (ring, chunk)) in self.rings.iter_mut().zip(chunks).enumerate() {
-            if self.used & (1 << k) != 0 {
+            if used & (1 << k) != 0 {
                 if let Some(src) = chunk.get(at..at + n) {
-                    ring.write(self.written, src);
+                    ring.write(written, src);
                 }
             }
         }
-        self.written = self.written.wrapping_add(n as u32);
+        self.written = written.wrapping_add(n as u32);
     }
 
     /// The stream word (modulo 4 096) before which every sample the next frame

@@ -281,21 +281,23 @@ impl Ring {
             .windows
             .get(..centres.count)
             .unwrap_or(&centres.windows);
-        if d > 0 {
-            let (l, r) = (d as u32 & 31, 31 - (d as u32 & 31));
+        // A shift of a whole window (`a` = 0) reads each window as it is.
+        let a = d.unsigned_abs() & 31;
+        // `a` is 1..=31 in the shifted branches, so no shift below reaches 32.
+        let (l, r) = (a, 32u32.wrapping_sub(a) & 31);
+        if d > 0 && a != 0 {
             let mut here = self.window(j);
             for &[m, v] in windows {
                 j = j.wrapping_add(1);
                 let next = self.window(j);
-                bad |= ((here << l | (next >> 1) >> r) & m) ^ v;
+                bad |= ((here << l | next >> r) & m) ^ v;
                 here = next;
             }
-        } else if d < 0 {
-            let (l, r) = (31 - (d.unsigned_abs() & 31), d.unsigned_abs() & 31);
+        } else if d < 0 && a != 0 {
             let mut prev = self.window(j.wrapping_sub(1));
             for &[m, v] in windows {
                 let here = self.window(j);
-                bad |= ((((prev << 1) << l) | here >> r) & m) ^ v;
+                bad |= ((prev << r | here >> l) & m) ^ v;
                 prev = here;
                 j = j.wrapping_add(1);
             }
