@@ -383,19 +383,7 @@ fn wide<const BITS: usize>(
 }
 
 /// Bit `k` of the index at bit `5k` (k < 6).
-const SPREAD6: [u32; 64] = {
-    let mut t = [0u32; 64];
-    let mut i = 0;
-    while i < 64 {
-        let mut k = 0;
-        while k < 6 {
-            t[i] |= ((i as u32 >> k) & 1) << (5 * k);
-            k += 1;
-        }
-        i += 1;
-    }
-    t
-};
+const SPREAD6: [u32; 64] = lanes::spread_table(6, 5);
 
 #[cfg(test)]
 mod tests {

@@ -12,20 +12,26 @@
 //! store of the word with the constant CLK-reset word (a 64-bit store on the
 //! Cortex-M7): no branches on the data and no per-bit gathering.
 
-/// Bit `k` of the index at bit `3k` (k < 8).
-const SPREAD3: [u32; 256] = {
-    let mut t = [0u32; 256];
+/// The spreading table of `BITS`-bit indices: entry `i` holds bit `k` of `i` at bit
+/// `stride * k`. Built at compile time; the bit loops of both transmitters use one
+/// (three lines: stride 3, eight bit times here; five lines: stride 5 in
+/// `xy3::tx`).
+pub(crate) const fn spread_table<const N: usize>(bits: u32, stride: u32) -> [u32; N] {
+    let mut t = [0u32; N];
     let mut i = 0;
-    while i < 256 {
+    while i < N {
         let mut k = 0;
-        while k < 8 {
-            t[i] |= ((i as u32 >> k) & 1) << (3 * k);
+        while k < bits {
+            t[i] |= ((i as u32 >> k) & 1) << (stride * k);
             k += 1;
         }
         i += 1;
     }
     t
-};
+}
+
+/// Bit `k` of the index at bit `3k` (k < 8).
+const SPREAD3: [u32; 256] = spread_table(8, 3);
 
 /// The low byte of `v` spread three places apart (bits above 7 ignored).
 #[inline(always)]
