@@ -45,6 +45,17 @@ fn port_samples(words: &[u32], clk: u8) -> Vec<u16> {
     out
 }
 
+/// A HANS-100 controller decoded in `decode` mode driving an XY2-100 head, Z taken
+/// from the input (the HANS-100 campaigns' pairing).
+fn hans_to_xy2(decode: shared::bridge::HansDecode) -> Config {
+    let mut c = Config::default();
+    c.controller.protocol = Protocol::Hans;
+    c.controller.hans.decode = decode;
+    c.head.protocol = Protocol::Xy2;
+    c.z.source = ZSource::Input;
+    c
+}
+
 /// What one block's run forwarded, judged against the frames the controller sent.
 #[derive(Default)]
 struct Tally {
@@ -400,11 +411,7 @@ fn a_million_faulted_hans_frames_none_corrupted() {
     let mut rng = ChaCha8Rng::seed_from_u64(0x4A45);
     let mut all = (Injected::default(), Score::default());
     for (m, decode) in MODES.into_iter().enumerate() {
-        let mut c = Config::default();
-        c.controller.protocol = Protocol::Hans;
-        c.controller.hans.decode = decode;
-        c.head.protocol = Protocol::Xy2;
-        c.z.source = ZSource::Input;
+        let mut c = hans_to_xy2(decode);
         c.output.timing = Timing::FreeRunning;
         c.failsafe.recovery_frames = 10;
         let (mut inj, mut s) = (Injected::default(), Score::default());
@@ -499,11 +506,7 @@ fn a_noisy_or_dead_backup_hans_channel_does_not_block_recovery() {
         HansDecode::Vote5,
         HansDecode::Super,
     ] {
-        let mut c = Config::default();
-        c.controller.protocol = Protocol::Hans;
-        c.controller.hans.decode = decode;
-        c.head.protocol = Protocol::Xy2;
-        c.z.source = ZSource::Input;
+        let mut c = hans_to_xy2(decode);
         c.failsafe.recovery_frames = 20;
         let p = campaign_hans::noisy_channels(&c, &[2], 1000, 400);
         let k = p.bridge_counters();
@@ -537,11 +540,7 @@ fn noisy_hans_channels_that_lose_periods_do_not_recover() {
         (HansDecode::Vote5, &[1, 2, 3, 4, 5][..], 600),
         (HansDecode::Super, &[1, 2, 3, 4, 5][..], 900),
     ] {
-        let mut c = Config::default();
-        c.controller.protocol = Protocol::Hans;
-        c.controller.hans.decode = decode;
-        c.head.protocol = Protocol::Xy2;
-        c.z.source = ZSource::Input;
+        let mut c = hans_to_xy2(decode);
         c.failsafe.recovery_frames = 20;
         let p = campaign_hans::noisy_channels(&c, noisy, per_mille, 2_000);
         let k = p.bridge_counters();
@@ -571,11 +570,7 @@ fn disturbed_start_edges_forward_no_wrong_frame() {
         HansDecode::Vote5,
         HansDecode::Super,
     ] {
-        let mut c = Config::default();
-        c.controller.protocol = Protocol::Hans;
-        c.controller.hans.decode = decode;
-        c.head.protocol = Protocol::Xy2;
-        c.z.source = ZSource::Input;
+        let mut c = hans_to_xy2(decode);
         c.output.timing = Timing::FreeRunning;
         c.failsafe.recovery_frames = 10;
         for (id, (ppm, jitter)) in [(0.0, 0.0), (10_000.0, 0.15), (-10_000.0, 0.15)]

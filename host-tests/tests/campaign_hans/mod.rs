@@ -257,20 +257,11 @@ fn faulted_channels(
     std::array::from_fn(|n| std::mem::take(&mut out[n]))
 }
 
-/// Plays BSRR words onto a port and samples it at each CLK falling edge (the
-/// head's XY2-100 receiver input).
+/// The head's XY2-100 receiver input: the port sampled at each CLK falling edge
+/// (`port_samples`), after the idle SYNC-low sample before the first frame.
 fn head_samples(words: &[u32], clk: u8) -> Vec<u16> {
-    let mut port: u16 = 0;
-    // SYNC idles low before the first frame.
     let mut out = vec![0];
-    for &w in words {
-        let was_high = port >> clk & 1 != 0;
-        port &= !((w >> 16) as u16);
-        port |= w as u16;
-        if was_high && port >> clk & 1 == 0 {
-            out.push(port & !(1 << clk));
-        }
-    }
+    out.extend(super::port_samples(words, clk));
     out
 }
 
