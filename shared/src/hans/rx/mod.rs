@@ -468,6 +468,19 @@ impl HansRx {
     fn store(&mut self, chunks: &[&[u16]], at: usize, n: usize) {
         // Read once: the ring writes could alias these fields for the compiler.
         let (written, used) = (self.written, self.used);
+        self.written = written.wrapping_add(n as u32);
+        // All five channels (vote5, super): one pass over the words for all rings.
+        if used == 0b1_1111 {
+            let src = core::array::from_fn(|k| {
+                chunks
+                    .get(k)
+                    .and_then(|c| c.get(at..at + n))
+                    .unwrap_or_default()
+            });
+            if Ring::write_all(&mut self.rings, written, src) {
+                return;
+            }
+        }
         for (k, (ring, chunk)) in self.rings.iter_mut().zip(chunks).enumerate() {
             if used & (1 << k) != 0 {
                 if let Some(src) = chunk.get(at..at + n) {
@@ -475,7 +488,6 @@ impl HansRx {
                 }
             }
         }
-        self.written = written.wrapping_add(n as u32);
     }
 
     /// The stream word (modulo 4 096) before which every sample the next frame
