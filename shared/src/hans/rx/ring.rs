@@ -64,6 +64,13 @@ impl Acc {
     }
 }
 
+/// The window of two consecutive stream words: the earlier one in the high half.
+/// Both are fetched with one (unaligned) load and swapped.
+#[inline(always)]
+fn pair(&[x, y]: &[u16; 2]) -> u32 {
+    (u32::from(x) | u32::from(y) << 16).rotate_right(16)
+}
+
 /// One channel's samples, stored as windows: slot `j % 32` holds window `j` (words
 /// `2j` and `2j + 1`), so reading a window is one load.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -107,14 +114,15 @@ impl Ring {
                 at = at.wrapping_add(1);
             }
         }
-        let mut pairs = src.chunks_exact(2);
-        for pair in &mut pairs {
-            if let (Some(slot), [a, b]) = (self.slot_mut(at >> 1), pair) {
-                *slot = u32::from(*a) << 16 | u32::from(*b);
+        let (pairs, rest) = src.as_chunks::<2>();
+        let mut j = at >> 1;
+        for p in pairs {
+            if let Some(slot) = self.slot_mut(j) {
+                *slot = pair(p);
             }
-            at = at.wrapping_add(2);
+            j = j.wrapping_add(1);
         }
-        if let (Some(&w), Some(slot)) = (pairs.remainder().first(), self.slot_mut(at >> 1)) {
+        if let (Some(&w), Some(slot)) = (rest.first(), self.slot_mut(j)) {
             *slot = *slot & 0xFFFF | u32::from(w) << 16;
         }
     }
@@ -142,9 +150,6 @@ impl Ring {
             at = at.wrapping_add(1);
         }
         let [a, b, c, d, e] = src.map(|s| s.as_chunks::<2>());
-        // Stream order: the earlier word of a pair in the high half. Both words
-        // are fetched with one (unaligned) load and swapped.
-        let pair = |&[x, y]: &[u16; 2]| (u32::from(x) | u32::from(y) << 16).rotate_right(16);
         let mut j = at >> 1;
         for ((((pa, pb), pc), pd), pe) in a.0.iter().zip(b.0).zip(c.0).zip(d.0).zip(e.0) {
             let t = j as usize % (RING_WORDS / 2);
