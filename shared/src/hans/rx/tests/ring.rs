@@ -73,7 +73,7 @@ proptest! {
         // The channel: the reference delayed by `d` samples (or noise), with one
         // sample flipped.
         let total = RING_WORDS * 16;
-        let mut words = vec![0u16; RING_WORDS];
+        let mut words = [0u16; RING_WORDS];
         for s in 0..total {
             let bit = if random_channel {
                 u32::from(noise[s / 16] >> (15 - s % 16) & 1)
