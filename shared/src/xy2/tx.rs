@@ -179,6 +179,11 @@ impl Transmitter {
         self.ticks
     }
 
+    /// The link's mode and parity policy the frames are encoded with.
+    pub const fn link(&self) -> LinkConfig {
+        self.link
+    }
+
     /// The idle word (CLK, SYNC and data low).
     pub const fn idle_word(&self) -> u32 {
         self.idle
