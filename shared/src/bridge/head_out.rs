@@ -143,7 +143,8 @@ fn xy2_slot<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(
     #[inline(always)]
     fn word<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(p: Position) -> u32 {
         let value = rounded::<SHIFT>(p);
-        HEADER | value << 1 | (ones_parity(value) ^ FLIP)
+        // The header lies above the value and FLIP in bit 0: one XOR sets both.
+        (value << 1 | ones_parity(value)) ^ (HEADER | FLIP)
     }
     #[inline(always)]
     fn pos<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(
@@ -178,9 +179,10 @@ fn xy2_slot<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(
 /// function guarantees (frame size, a frame exactly for every driven line).
 #[inline(always)]
 fn xy3_words(tx: &xy3::tx::Transmitter, f: &ForwardFrame, lines: Lines) -> Option<[u32; 5]> {
-    // X and Y always have pins (the transmitter requires them) and always go out.
-    let optional = [Axis::Z, Axis::U, Axis::W];
-    if optional.iter().any(|&a| tx.drives(a) != lines.has(a)) {
+    // X and Y always have pins (the transmitter requires them) and always go out;
+    // Z, U and W must be driven exactly as `lines` says.
+    const OPTIONAL: u8 = 0b11100;
+    if (tx.driven() ^ lines.bits()) & OPTIONAL != 0 {
         return None;
     }
     // One copy per frame size, so the layout constants fold.
