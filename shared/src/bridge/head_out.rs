@@ -9,6 +9,20 @@
 //! carry, a transmitter error) leaves the slot idle, so the head sees a missing
 //! frame rather than a guessed one (fail-safe policy in the README). HANS-100 heads
 //! are not a waveform output (their SAI ring is written by `hans::tx`).
+//!
+//! # Cost
+//! The wire words are computed here, straight from each position's MSB-aligned
+//! value, and the transmitter only fills the slot (`write_words` /
+//! `encode_words`): rounding to the field is one saturating add, the XY2-100 parity
+//! bit is the value's parity (a few XOR folds and one multiply) XOR a constant of the
+//! link's mode and parity scope, the XY3-100 parity is the value's count of ones.
+//! Each mode / parity scope / frame size has its own copy of the word code, so the
+//! header and parity constants fold instead of being looked up per frame; the
+//! checked routes through the frame enums (`xy2::encode`, `xy3::encode`) are only
+//! taken for commands. The tests compare every output with those routes. About
+//! 215 instructions for one slot on each of the worst path's heads together
+//! (XY3-100 32-bit on X Y Z, XY2-100 with Z; 320 before), fills not included
+//! (`cargo xtask profile worst`).
 
 use crate::model::{Axis, ForwardFrame, Position};
 use crate::xy3::neutral::command_frame;
