@@ -104,14 +104,20 @@ fn rounded<const SHIFT: u32>(p: Position) -> u32 {
     p.aligned().saturating_add(1 << (SHIFT - 1)) >> SHIFT
 }
 
-/// The parity of the ones in `v`: XOR of every bit.
+/// The parity of the ones in `v`, a value below `2^bits`: XOR of every bit, folded
+/// in halves (for a constant `bits`, four or five XORs with shifted operands and no
+/// constants).
 #[inline(always)]
-fn ones_parity(v: u32) -> u32 {
-    // Fold each nibble's parity into its bit 0, then add the eight nibble parities
-    // into the top nibble with one multiplication (the sum, at most 8, fits it).
-    let v = v ^ v >> 1;
-    let v = v ^ v >> 2;
-    ((v & 0x1111_1111).wrapping_mul(0x1111_1111) >> 28) & 1
+fn ones_parity(v: u32, bits: u32) -> u32 {
+    let mut v = v;
+    let mut half = 16;
+    while half > 0 {
+        if half < bits {
+            v ^= v >> half;
+        }
+        half >>= 1;
+    }
+    v & 1
 }
 
 /// The XY2-100 wire words of one slot (X, Y, Z; Z 0 without a Z line), or `None`
@@ -158,7 +164,7 @@ fn xy2_slot<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(
     fn word<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(p: Position) -> u32 {
         let value = rounded::<SHIFT>(p);
         // The header lies above the value and FLIP in bit 0: one XOR sets both.
-        (value << 1 | ones_parity(value)) ^ (HEADER | FLIP)
+        (value << 1 | ones_parity(value, 32 - SHIFT)) ^ (HEADER | FLIP)
     }
     #[inline(always)]
     fn pos<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(
