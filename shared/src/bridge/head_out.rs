@@ -19,11 +19,11 @@
 //! Each mode / parity scope / frame size has its own copy of the word code, so the
 //! header and parity constants fold instead of being looked up per frame; the
 //! checked routes through the frame enums (`xy2::encode`, `xy3::encode`) are only
-//! taken for commands. The tests compare every output with those routes. The
-//! fills come inlined (`write_words` / `encode_words`), so the words stay in
-//! registers. About 190 instructions for one slot on each of the worst path's heads
-//! together (XY3-100 32-bit on X Y Z, XY2-100 with Z; 320 before), plus ~320 for
-//! the two fills (`cargo xtask profile worst`).
+//! taken for commands. The tests compare every output with those routes. About
+//! 210 instructions for one slot on each of the worst path's heads together
+//! (XY3-100 32-bit on X Y Z, XY2-100 with Z; 320 before), fills not included
+//! (`cargo xtask profile worst`). The fills stay out of line (in ITCM on the
+//! board, "Memory placement" in the README): inlining them here would save ~20.
 
 use crate::model::{Axis, ForwardFrame, Position};
 use crate::xy3::neutral::command_frame;

@@ -207,13 +207,9 @@ impl Transmitter {
 
     /// Writes already encoded 20-bit words (X, Y, Z; Z ignored without a Z pin) into
     /// `slot` unchanged, e.g. to pass frames through. Bits above bit 19 are ignored.
-    ///
-    /// Inlined with the fill, for the bridge's head encoder, which calls it once per
-    /// output slot with the words in registers: no call, no words through memory.
-    #[inline(always)]
     pub fn write_words(&self, slot: &mut [u32], words: [u32; 3]) -> Result<(), TxError> {
         self.check_len(slot, 1)?;
-        self.fill_inline(slot, words);
+        self.fill(slot, words);
         Ok(())
     }
 
@@ -257,13 +253,7 @@ impl Transmitter {
     /// Writes the 40 bit words and the idle tail; `slot` has the right length. Out of
     /// line: it is the same for every caller, while the frame checks inline.
     #[inline(never)]
-    fn fill(&self, slot: &mut [u32], words: [u32; 3]) {
-        self.fill_inline(slot, words);
-    }
-
-    /// [`Self::fill`]'s body.
-    #[inline(always)]
-    fn fill_inline(&self, slot: &mut [u32], [x, y, z]: [u32; 3]) {
+    fn fill(&self, slot: &mut [u32], [x, y, z]: [u32; 3]) {
         let (bits, tail) = slot.split_at_mut(FRAME_TICKS.min(slot.len()));
         tail.fill(self.idle);
         let (pairs, _) = bits.as_chunks_mut::<2>();

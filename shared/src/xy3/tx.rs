@@ -294,13 +294,9 @@ impl Transmitter {
     /// ignored; words of lines without a pin are ignored) into
     /// `out[..ticks_per_frame()]`, for a caller that built and checked the frames
     /// itself (the bridge's head encoder).
-    ///
-    /// Inlined with the fill, for the bridge's head encoder, which calls it once per
-    /// output slot with the words in registers: no call, no words through memory.
-    #[inline(always)]
     pub fn encode_words(&self, words: [u32; 5], out: &mut [u32]) -> Result<(), TxError> {
         let out = self.slot(out)?;
-        self.fill_words_inline(words, out);
+        self.fill_words(words, out);
         Ok(())
     }
 
@@ -308,12 +304,6 @@ impl Transmitter {
     /// every caller, while the frame checks inline.
     #[inline(never)]
     fn fill_words(&self, words: [u32; 5], out: &mut [u32]) {
-        self.fill_words_inline(words, out);
-    }
-
-    /// [`Self::fill_words`]' body.
-    #[inline(always)]
-    fn fill_words_inline(&self, words: [u32; 5], out: &mut [u32]) {
         // One copy of the bit loop per frame size, so it unrolls with constant shifts,
         // and per "U or W driven", so the common X Y Z head skips two idle lines.
         match (self.size, self.wide) {
