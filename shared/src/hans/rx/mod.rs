@@ -474,16 +474,8 @@ impl HansRx {
         let (written, used) = (self.written, self.used);
         self.written = written.wrapping_add(n as u32);
         // All five channels (vote5, super): one pass over the words for all rings.
-        if used == 0b1_1111 {
-            let src = core::array::from_fn(|k| {
-                chunks
-                    .get(k)
-                    .and_then(|c| c.get(at..at + n))
-                    .unwrap_or_default()
-            });
-            if Ring::write_all(&mut self.rings, written, src) {
-                return;
-            }
+        if used == 0b1_1111 && Ring::write_all(&mut self.rings, written, chunks, at, n) {
+            return;
         }
         for (k, (ring, chunk)) in self.rings.iter_mut().zip(chunks).enumerate() {
             if used & (1 << k) != 0 {
