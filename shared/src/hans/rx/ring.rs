@@ -127,17 +127,40 @@ impl Ring {
         }
     }
 
-    /// [`Ring::write`] of all five rings at once (vote5 and super mode): one pass
-    /// over the word pairs stores each pair of every channel, so the loop and the
-    /// slot index are paid once per pair instead of once per pair and channel, and
-    /// the per-call set-up once instead of five times. `src[k]` goes to `rings[k]`;
-    /// all five must have the same length (else nothing is stored and false is
-    /// returned).
-    pub fn write_all(rings: &mut [Ring; 5], at: u32, src: [&[u16]; 5]) -> bool {
-        let n = src[0].len();
-        if src.iter().any(|s| s.len() != n) || n == 0 {
-            return n == 0 && src.iter().all(|s| s.is_empty());
+    /// [`Ring::write`] of words `from .. from + n` of each of the first five
+    /// `chunks` at once (vote5 and super mode; `chunks[k]` goes to `rings[k]`): one
+    /// pass over the word pairs stores each pair of every channel, so the loop and
+    /// the slot index are paid once per pair instead of once per pair and channel,
+    /// and the per-call set-up once instead of five times. The range is checked
+    /// once against the shortest chunk, so every source then has `n` words by
+    /// construction and no length is compared again. False (nothing stored) when
+    /// a chunk is missing or shorter.
+    pub fn write_all(
+        rings: &mut [Ring; 5],
+        at: u32,
+        chunks: &[&[u16]],
+        from: usize,
+        n: usize,
+    ) -> bool {
+        let Some(&[a, b, c, d, e]) = chunks.get(..5) else {
+            return false;
+        };
+        let to = from.wrapping_add(n);
+        let len = a.len().min(b.len()).min(c.len()).min(d.len()).min(e.len());
+        if to < from || to > len {
+            return false;
         }
+        let src = [a, b, c, d, e].map(|s| s.get(from..to).unwrap_or_default());
+        if n > 0 {
+            Ring::store_all(rings, at, src);
+        }
+        true
+    }
+
+    /// The five-ring store proper: `src` nonempty and all of one length (which the
+    /// loop's lookups rely on to need no checks).
+    #[inline(always)]
+    fn store_all(rings: &mut [Ring; 5], at: u32, src: [&[u16]; 5]) {
         let mut at = at;
         let mut src = src;
         if at & 1 == 1 {
@@ -151,13 +174,17 @@ impl Ring {
         }
         let [a, b, c, d, e] = src.map(|s| s.as_chunks::<2>());
         let mut j = at >> 1;
-        for ((((pa, pb), pc), pd), pe) in a.0.iter().zip(b.0).zip(c.0).zip(d.0).zip(e.0) {
+        let pairs = [a.0, b.0, c.0, d.0, e.0];
+        for p in 0..a.0.len() {
             let t = j as usize % (RING_WORDS / 2);
             // Indexed, not destructured: the five slots are then one base register
             // plus constant offsets.
-            for (k, p) in [pa, pb, pc, pd, pe].into_iter().enumerate() {
-                if let Some(slot) = rings.get_mut(k).and_then(|r| r.windows.get_mut(t)) {
-                    *slot = pair(p);
+            for (k, s) in pairs.iter().enumerate() {
+                if let (Some(w), Some(slot)) = (
+                    s.get(p),
+                    rings.get_mut(k).and_then(|r| r.windows.get_mut(t)),
+                ) {
+                    *slot = pair(w);
                 }
             }
             j = j.wrapping_add(1);
@@ -168,7 +195,6 @@ impl Ring {
                 *slot = *slot & 0xFFFF | u32::from(w) << 16;
             }
         }
-        true
     }
 
     fn slot_mut(&mut self, j: u32) -> Option<&mut u32> {

@@ -24,33 +24,44 @@ fn sample(ring: &Ring, s: i64) -> u32 {
 }
 
 proptest! {
+    /// The five-ring store of words `from .. from + len` of five chunks equals five
+    /// single-ring stores, at any ring position and word parity; a chunk missing
+    /// or too short for the range refuses the store and leaves every ring as it
+    /// was.
     #[test]
     fn write_all_matches_five_writes(
         fill in proptest::array::uniform5(proptest::collection::vec(any::<u16>(), RING_WORDS)),
-        from in any::<u32>(),
+        from_ring in any::<u32>(),
         at in any::<u32>(),
+        from in 0usize..8,
         len in 0usize..=RING_WORDS / 2,
-        words in proptest::array::uniform5(proptest::collection::vec(any::<u16>(), RING_WORDS / 2)),
-        short in proptest::option::of(0usize..5),
+        words in proptest::array::uniform5(proptest::collection::vec(any::<u16>(), RING_WORDS / 2 + 8)),
+        short in proptest::option::of((0usize..5, 0usize..8)),
+        chunk_count in 4usize..=6,
     ) {
-        let before = rings(&fill, from);
-        let src: [&[u16]; 5] = core::array::from_fn(|k| {
-            let n = if short == Some(k) && len > 0 { len - 1 } else { len };
-            &words[k][..n]
-        });
+        let before = rings(&fill, from_ring);
+        // The chunks end right after the range, or (`short`) up to 8 words early.
+        let chunks: Vec<&[u16]> = (0..chunk_count)
+            .map(|k| {
+                let end = match short {
+                    Some((s, cut)) if s == k % 5 => (from + len).saturating_sub(cut + 1),
+                    _ => from + len,
+                };
+                &words[k % 5][..end]
+            })
+            .collect();
         let mut fast = before;
-        let stored = Ring::write_all(&mut fast, at, src);
-        if short.is_some() && len > 0 {
-            // Unequal lengths: refused, nothing stored.
-            prop_assert!(!stored);
-            prop_assert_eq!(fast, before);
-        } else {
-            prop_assert!(stored);
+        let stored = Ring::write_all(&mut fast, at, &chunks, from, len);
+        let fits = chunks.len() >= 5 && chunks.iter().take(5).all(|c| c.len() >= from + len);
+        prop_assert_eq!(stored, fits);
+        if fits {
             let mut general = before;
-            for (ring, s) in general.iter_mut().zip(src) {
-                ring.write(at, s);
+            for (ring, c) in general.iter_mut().zip(&chunks) {
+                ring.write(at, &c[from..from + len]);
             }
             prop_assert_eq!(fast, general);
+        } else {
+            prop_assert_eq!(fast, before);
         }
     }
 
