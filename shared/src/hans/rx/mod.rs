@@ -115,6 +115,7 @@
 
 pub mod channel;
 pub mod modes;
+pub mod phase;
 pub mod ring;
 pub mod table;
 pub mod timing;
@@ -503,7 +504,7 @@ impl HansRx {
         let last = start
             .wrapping_add((t.ratio as u32).wrapping_mul(FRAME_BITS as u32))
             .wrapping_add(confirm_window(t.ratio))
-            .wrapping_add(HALF);
+            .wrapping_add((1 << FRAC) - 1);
         // Two samples of slack: a table-gathered centre (or a shifted compare) may
         // fall one sample after the exact position.
         (last.wrapping_add(late as u32).wrapping_add(2 << FRAC) >> 20).wrapping_add(1)
@@ -640,6 +641,16 @@ impl HansRx {
             }
         };
         let verified = self.evaluate(&patterns, aligned, same, confirmed, ref_pattern, &mut gated);
+        // A young lock learns phase and rate from the verified reference's mid-pair
+        // edges (`timing::YOUNG`).
+        if let (true, Some(ring)) = (
+            verified & (1 << reference) != 0 && self.timing.young(),
+            self.rings.get(reference),
+        ) {
+            let at = start.wrapping_add(ref_delay as u32);
+            self.timing
+                .refine(&phase::mid_pairs(ring, at, ratio, ref_pattern));
+        }
         self.pending = Some((verified, same));
     }
 
@@ -659,8 +670,12 @@ impl HansRx {
         let w = confirm_window(ratio);
         let head = start.wrapping_add(delay as u32);
         let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
+        // Centred: the low samples an edge within `w` of `at` can give (the first
+        // sample after the edge, `ceil(at - w)..=ceil(at + w)`; `first_fall` rounds
+        // its bounds down).
+        let up = (1 << FRAC) - 1;
         [head, next].into_iter().all(|at| {
-            ring.first_fall(at.wrapping_sub(w), at.wrapping_add(w).wrapping_add(HALF))
+            ring.first_fall(at.wrapping_sub(w).wrapping_add(up), at.wrapping_add(w).wrapping_add(up))
                 .is_some()
         })
     }
@@ -729,7 +744,7 @@ impl HansRx {
                     ch.failures = ch.failures.saturating_add(1);
                     // A channel that keeps failing is taken to be misaligned (a
                     // delay measured on a glitch): it aligns again from scratch.
-                    if ch.failures >= RELOCK_AFTER && ch.unalign() {
+                    if ch.failures >= self.timing.relock_after() && ch.unalign() {
                         stats.resyncs = stats.resyncs.wrapping_add(1);
                         sink(RxEvent::Fault {
                             channel: Some(number(n)),
@@ -889,7 +904,7 @@ impl HansRx {
             self.dry = self.dry.saturating_add(1);
             // A lock that yields nothing but failures is a false lock (on a data
             // edge that happened to repeat a frame apart, or a rate far off).
-            if self.dry >= RELOCK_AFTER {
+            if self.dry >= self.timing.relock_after() {
                 self.lose(sink);
             }
         } else {
