@@ -542,6 +542,9 @@ impl HansRx {
             if let Some(ch) = self.channels.get_mut(n) {
                 ch.align(0);
             }
+            if let Some(ring) = self.rings.get(n) {
+                phase::learn_locked_frame(ring, &mut self.table, &mut self.timing);
+            }
             self.need = self.need();
         }
     }
