@@ -678,8 +678,11 @@ impl HansRx {
         // its bounds down).
         let up = (1 << FRAC) - 1;
         [head, next].into_iter().all(|at| {
-            ring.first_fall(at.wrapping_sub(w).wrapping_add(up), at.wrapping_add(w).wrapping_add(up))
-                .is_some()
+            ring.first_fall(
+                at.wrapping_sub(w).wrapping_add(up),
+                at.wrapping_add(w).wrapping_add(up),
+            )
+            .is_some()
         })
     }
 

@@ -95,7 +95,12 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
     let half = ratio / 2;
     // The pairs' first bits, left-aligned: the line's first bit at bit 127.
     let p = pattern << 3;
-    let words = [(p >> 96) as u32, (p >> 64) as u32, (p >> 32) as u32, p as u32];
+    let words = [
+        (p >> 96) as u32,
+        (p >> 64) as u32,
+        (p >> 32) as u32,
+        p as u32,
+    ];
     let mut out = Points::default();
     // Edge of pair i (bit boundary 2i + 1).
     let mut at = start.wrapping_add(ratio);
@@ -240,7 +245,11 @@ mod tests {
             }
         };
         let words: Vec<u16> = (0..64)
-            .map(|w| (0..16).fold(0u16, |acc, i| acc << 1 | u16::from(level(f64::from(w * 16 + i)))))
+            .map(|w| {
+                (0..16).fold(0u16, |acc, i| {
+                    acc << 1 | u16::from(level(f64::from(w * 16 + i)))
+                })
+            })
             .collect();
         let mut ring = Ring::default();
         ring.write(0, &words);
@@ -328,7 +337,10 @@ mod tests {
             let sxy = xs.iter().zip(&ys).map(|(x, y)| x * y).sum::<f64>();
             let slope = (m * sxy - sx * sy) / (m * sxx - sx * sx);
             let at_n = (sy - slope * sx) / m + slope * f64::from(n);
-            assert!((period - slope).abs() < 0.002, "{n}: period {period} vs {slope}");
+            assert!(
+                (period - slope).abs() < 0.002,
+                "{n}: period {period} vs {slope}"
+            );
             assert!((start - at_n).abs() < 0.002, "{n}: start {start} vs {at_n}");
         }
     }
@@ -347,6 +359,9 @@ mod tests {
             assert!(c.start.abs() < q(4.0) && c.period.abs() < q(500.0), "{c:?}");
         }
         // A fit without points corrects nothing.
-        assert_eq!(Fit::default().add(&Points::default()), Correction::default());
+        assert_eq!(
+            Fit::default().add(&Points::default()),
+            Correction::default()
+        );
     }
 }

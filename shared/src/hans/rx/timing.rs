@@ -35,7 +35,7 @@ pub const SETTLED: i32 = 8;
 /// [`super::phase`], mid-pair edges included. Long enough for a lock whose first
 /// frames fail (rate measured over one jittered frame) to see several verified
 /// frames; short enough for the fit's sums to stay small (see `Fit::add`).
-pub const YOUNG: i32 = 32;
+pub const YOUNG: i32 = 20;
 /// Bits in a frame as the fixed-point multiplier.
 const BITS: i32 = FRAME_BITS as i32;
 
