@@ -313,8 +313,11 @@ impl Bridge {
                     &mut self.counters.commands_forwarded,
                 );
             }
-            let frame = self.pending.take();
-            return self.output(frame, head_back_rate);
+            // The frame goes straight from its slot into the output (built first:
+            // `output` does not read `pending`), one copy instead of two.
+            let mut out = self.output(None, head_back_rate);
+            out.frame = self.pending.take();
+            return out;
         }
         let frame = match (state, self.config.output.timing) {
             (LinkState::Running, Timing::Slaved) => None,

@@ -9,9 +9,24 @@
 //! carry, a transmitter error) leaves the slot idle, so the head sees a missing
 //! frame rather than a guessed one (fail-safe policy in the README). HANS-100 heads
 //! are not a waveform output (their SAI ring is written by `hans::tx`).
+//!
+//! # Cost
+//! The wire words are computed here, straight from each position's MSB-aligned
+//! value, and the transmitter only fills the slot (`write_words` /
+//! `encode_words`): rounding to the field is one saturating add, the XY2-100 parity
+//! bit is the value's parity (a few XOR folds and one multiply) XOR a constant of the
+//! link's mode and parity scope, the XY3-100 parity is the value's count of ones.
+//! Each mode / parity scope / frame size has its own copy of the word code, so the
+//! header and parity constants fold instead of being looked up per frame; the
+//! checked routes through the frame enums (`xy2::encode`, `xy3::encode`) are only
+//! taken for commands. The tests compare every output with those routes. About
+//! 210 instructions for one slot on each of the worst path's heads together
+//! (XY3-100 32-bit on X Y Z, XY2-100 with Z; 320 before), fills not included
+//! (`cargo xtask profile worst`). The fills stay out of line (in ITCM on the
+//! board, "Memory placement" in the README): inlining them here would save ~20.
 
-use crate::model::{Axis, ForwardFrame};
-use crate::xy3::neutral::{command_frame, position_frame};
+use crate::model::{Axis, ForwardFrame, Position};
+use crate::xy3::neutral::command_frame;
 use crate::xy3::rx::Lines;
 use crate::{xy2, xy3};
 
@@ -66,7 +81,7 @@ impl HeadTx {
     pub fn encode(&self, frame: Option<&ForwardFrame>, slot: &mut [u32]) -> bool {
         let written = match (self, frame) {
             (HeadTx::Xy2 { tx, mode, z }, Some(f)) => {
-                xy2_frame(f, *mode, *z).is_some_and(|t| tx.write_frame(slot, &t).is_ok())
+                xy2_words(tx, f, *mode, *z).is_some_and(|w| tx.write_words(slot, w).is_ok())
             }
             (HeadTx::Xy3 { tx, lines }, Some(f)) => {
                 xy3_words(tx, f, *lines).is_some_and(|words| tx.encode_words(words, slot).is_ok())
@@ -80,23 +95,96 @@ impl HeadTx {
     }
 }
 
-/// The XY2-100 frames of one slot, or `None` if `f` lacks one of them.
-fn xy2_frame(f: &ForwardFrame, mode: xy2::Mode, z: bool) -> Option<xy2::tx::TxFrame> {
-    let pos = |a: Axis| f.axis(a).map(|p| xy2::Frame::from_position(p, mode));
+/// `p` at a field of `32 - SHIFT` bits (`SHIFT` 1..=31): [`Position::to_raw`]'s
+/// rounding (to nearest, ties upward, saturated at full scale) in one saturating
+/// add. Below full scale the sum cannot wrap (the value is below the field's top
+/// step and the half step below one step); at full scale it either stays in the top
+/// step or saturates there, and both shift down to the field's maximum.
+#[inline(always)]
+fn rounded<const SHIFT: u32>(p: Position) -> u32 {
+    p.aligned().saturating_add(1 << (SHIFT - 1)) >> SHIFT
+}
+
+/// The parity of the ones in `v`, a value below `2^bits`: XOR of every bit, folded
+/// in halves (for a constant `bits`, four or five XORs with shifted operands and no
+/// constants).
+#[inline(always)]
+fn ones_parity(v: u32, bits: u32) -> u32 {
+    let mut v = v;
+    let mut half = 16;
+    while half > 0 {
+        if half < bits {
+            v ^= v >> half;
+        }
+        half >>= 1;
+    }
+    v & 1
+}
+
+/// The XY2-100 wire words of one slot (X, Y, Z; Z 0 without a Z line), or `None`
+/// if `f` lacks one of them or the link cannot carry it. Exactly what
+/// [`xy2::tx::Transmitter::write_frame`] would write for the frames
+/// `xy2::Frame::from_position` / `from_command` give (the tests check it), with the
+/// position words computed straight from the aligned value, one copy per mode and
+/// parity scope so the header and parity constants fold.
+#[inline(always)]
+fn xy2_words(
+    tx: &xy2::tx::Transmitter,
+    f: &ForwardFrame,
+    mode: xy2::Mode,
+    z: bool,
+) -> Option<[u32; 3]> {
+    let link = tx.link();
+    // A position frame of the head's width on a link of the other mode is refused
+    // by the encoder; every slot carries at least Y's.
+    if mode != link.mode {
+        return None;
+    }
+    // A position word is header | value << 1 | parity, and the value's bits all lie
+    // in the parity scope of every policy (`xy2::frame`), so the parity bit is the
+    // value's parity XOR a constant: the header bit if the scope counts it (whole
+    // frame), XOR 1 for the odd parity of 18-bit positions.
+    use xy2::{Mode, Parity};
+    match (mode, link.parity) {
+        (Mode::Standard16, Parity::DataOnly) => xy2_slot::<16, { 1 << 17 }, 0>(f, &link, z),
+        (Mode::Standard16, _) => xy2_slot::<16, { 1 << 17 }, 1>(f, &link, z),
+        (Mode::Extended18, Parity::DataOnly) => xy2_slot::<14, { 1 << 19 }, 1>(f, &link, z),
+        (Mode::Extended18, _) => xy2_slot::<14, { 1 << 19 }, 0>(f, &link, z),
+    }
+}
+
+/// [`xy2_words`] for positions of `32 - SHIFT` bits with `HEADER` and a parity bit of
+/// the value's parity XOR `FLIP`.
+#[inline(always)]
+fn xy2_slot<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(
+    f: &ForwardFrame,
+    link: &xy2::LinkConfig,
+    z: bool,
+) -> Option<[u32; 3]> {
+    #[inline(always)]
+    fn word<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(p: Position) -> u32 {
+        let value = rounded::<SHIFT>(p);
+        // The header lies above the value and FLIP in bit 0: one XOR sets both.
+        (value << 1 | ones_parity(value, 32 - SHIFT)) ^ (HEADER | FLIP)
+    }
+    #[inline(always)]
+    fn pos<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(
+        f: &ForwardFrame,
+        a: Axis,
+    ) -> Option<u32> {
+        f.axis(a).map(word::<SHIFT, HEADER, FLIP>)
+    }
+    let pos = |a: Axis| pos::<SHIFT, HEADER, FLIP>(f, a);
     // A command rides on X in place of the position (XY2-100 enhanced); a command
     // XY2-100 cannot carry falls back to the X position.
-    let x = f
-        .command
-        .and_then(xy2::Frame::from_command)
-        .or_else(|| pos(Axis::X))?;
+    let x = match f.command.and_then(xy2::Frame::from_command) {
+        Some(c) => xy2::encode(c, link).ok()?,
+        None => pos(Axis::X)?,
+    };
     // A driven Z line needs a Z frame: all-zero bits would be an invalid frame on the
-    // head's Z channel.
-    let z = if z { Some(pos(Axis::Z)?) } else { None };
-    Some(xy2::tx::TxFrame {
-        x,
-        y: pos(Axis::Y)?,
-        z,
-    })
+    // head's Z channel. Without a Z pin the transmitter ignores the word.
+    let z = if z { pos(Axis::Z)? } else { 0 };
+    Some([x, pos(Axis::Y)?, z])
 }
 
 /// The XY3-100 wire words of one slot (0 for lines not driven), or `None` if `f`
@@ -105,23 +193,58 @@ fn xy2_frame(f: &ForwardFrame, mode: xy2::Mode, z: bool) -> Option<xy2::tx::TxFr
 /// [`xy3::tx::Transmitter::encode`] would refuse too). Axes `f` carries for
 /// lines the head does not drive are left out.
 ///
-/// The frames are built at the transmitter's size and encoded here, once, so the
-/// transmitter only fills the slot ([`xy3::tx::Transmitter::encode_words`]): this is
-/// exactly what [`xy3::tx::Transmitter::encode`] would write for them, without
-/// checking again what this function guarantees (frame size, a frame exactly for
-/// every driven line).
+/// The words are built at the transmitter's size here, once, so the transmitter
+/// only fills the slot ([`xy3::tx::Transmitter::encode_words`]): this is exactly
+/// what [`xy3::tx::Transmitter::encode`] would write for the frames
+/// `position_frame` / `command_frame` give, without checking again what this
+/// function guarantees (frame size, a frame exactly for every driven line).
+#[inline(always)]
 fn xy3_words(tx: &xy3::tx::Transmitter, f: &ForwardFrame, lines: Lines) -> Option<[u32; 5]> {
-    // X and Y always have pins (the transmitter requires them) and always go out.
-    let optional = [Axis::Z, Axis::U, Axis::W];
-    if optional.iter().any(|&a| tx.drives(a) != lines.has(a)) {
+    // X and Y always have pins (the transmitter requires them) and always go out;
+    // Z, U and W must be driven exactly as `lines` says.
+    const OPTIONAL: u8 = 0b11100;
+    if (tx.driven() ^ lines.bits()) & OPTIONAL != 0 {
         return None;
     }
-    let size = tx.size();
-    let word = |frame: xy3::Frame| xy3::encode(&frame).ok().map(|(w, _)| w);
-    let pos = |a: Axis| f.axis(a).and_then(|p| word(position_frame(p, size)));
+    // One copy per frame size, so the layout constants fold.
+    match tx.size() {
+        xy3::FrameSize::Bits24 => xy3_slot::<12, { 0b01 << 22 }, 2>(f, lines),
+        xy3::FrameSize::Bits32 => xy3_slot::<6, { 0b11 << 30 }, 4>(f, lines),
+    }
+}
+
+/// [`xy3_words`] for frames with positions of `32 - SHIFT` bits, size and mode bits
+/// `HEADER` and `PARITY` parity bits. A position word is computed straight from
+/// the aligned value (XY3-100 §5.1 layout: size and mode bits, the position, its
+/// count of ones modulo 4 or 16).
+#[inline(always)]
+fn xy3_slot<const SHIFT: u32, const HEADER: u32, const PARITY: u32>(
+    f: &ForwardFrame,
+    lines: Lines,
+) -> Option<[u32; 5]> {
+    let size = match SHIFT {
+        12 => xy3::FrameSize::Bits24,
+        _ => xy3::FrameSize::Bits32,
+    };
+    #[inline(always)]
+    fn word<const SHIFT: u32, const HEADER: u32, const PARITY: u32>(p: Position) -> u32 {
+        let value = rounded::<SHIFT>(p);
+        HEADER | value << PARITY | (value.count_ones() & ((1 << PARITY) - 1))
+    }
+    #[inline(always)]
+    fn pos<const SHIFT: u32, const HEADER: u32, const PARITY: u32>(
+        f: &ForwardFrame,
+        a: Axis,
+    ) -> Option<u32> {
+        f.axis(a).map(word::<SHIFT, HEADER, PARITY>)
+    }
+    let pos = |a: Axis| pos::<SHIFT, HEADER, PARITY>(f, a);
     // The command frame takes X's place (XY3-100 sends commands on the X line).
     let x = match f.command {
-        Some(c) => command_frame(&c, size).ok().and_then(word),
+        Some(c) => command_frame(&c, size)
+            .ok()
+            .and_then(|frame| xy3::encode(&frame).ok())
+            .map(|(w, _)| w),
         None => pos(Axis::X),
     }?;
     // A driven line needs its frame: all-zero bits would be a dead line to the head.
@@ -138,7 +261,8 @@ fn xy3_words(tx: &xy3::tx::Transmitter, f: &ForwardFrame, lines: Lines) -> Optio
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::model::{Command, Position};
+    use crate::model::Command;
+    use crate::xy3::neutral::position_frame;
     use crate::xy3::FrameSize;
 
     fn pos(raw: u32) -> Option<Position> {
@@ -485,26 +609,99 @@ mod tests {
         }
     }
 
+    /// What the head encoder wrote before it computed the XY2-100 words itself: the
+    /// frames `from_position` / `from_command` give through the transmitter's
+    /// checked `write_frame`.
+    fn xy2_reference(head: &HeadTx, f: &ForwardFrame) -> (bool, Vec<u32>) {
+        let HeadTx::Xy2 { tx, mode, z } = head else {
+            panic!("not an XY2-100 head")
+        };
+        let pos = |a: Axis| f.axis(a).map(|p| xy2::Frame::from_position(p, *mode));
+        let frame = || -> Option<xy2::tx::TxFrame> {
+            let x = f
+                .command
+                .and_then(xy2::Frame::from_command)
+                .or_else(|| pos(Axis::X))?;
+            let z = if *z { Some(pos(Axis::Z)?) } else { None };
+            Some(xy2::tx::TxFrame {
+                x,
+                y: pos(Axis::Y)?,
+                z,
+            })
+        };
+        let mut slot = vec![0xDEAD_BEEF; tx.ticks_per_frame()];
+        match frame().map(|t| tx.write_frame(&mut slot, &t)) {
+            Some(Ok(())) => (true, slot),
+            _ => (false, idle(head)),
+        }
+    }
+
+    /// A random neutral frame: any axes present at any width, commands of either
+    /// protocol (XY3-100 codes also beyond the field), positions near full scale
+    /// and the centre as often as elsewhere.
+    fn any_frame() -> impl proptest::strategy::Strategy<Value = ForwardFrame> {
+        use proptest::prelude::*;
+        let value = prop_oneof![
+            any::<u32>(),
+            (0u32..64).prop_map(|d| u32::MAX - d),
+            Just(0x8000_0000)
+        ];
+        let axis = proptest::option::of((value, 1u8..=32));
+        let command = proptest::option::of((any::<bool>(), 0u32..0x20_0000, any::<u8>()));
+        (proptest::array::uniform5(axis), command).prop_map(|(raw, command)| {
+            let mut f = ForwardFrame::default();
+            for (axis, a) in f.axes.iter_mut().zip(raw) {
+                *axis = a.and_then(|(v, bits)| {
+                    Position::from_raw(v >> (32 - u32::from(bits)), bits).ok()
+                });
+            }
+            f.command = command.map(|(xy3, code, parameter)| {
+                if xy3 {
+                    Command::Xy3(code)
+                } else {
+                    Command::Xy2Enhanced {
+                        command: code as u8,
+                        parameter,
+                    }
+                }
+            });
+            f
+        })
+    }
+
     proptest::proptest! {
+        /// The XY2-100 path equals the checked reference for random frames, both
+        /// modes and every parity policy, with and without a Z line, also when the
+        /// head's mode and the transmitter's link disagree.
+        #[test]
+        fn xy2_matches_the_checked_encoder(
+            f in any_frame(),
+            modes in proptest::array::uniform2(proptest::bool::ANY),
+            parity in 0u8..3,
+            z in proptest::array::uniform2(proptest::bool::ANY),
+        ) {
+            let mode = |m| if m { xy2::Mode::Extended18 } else { xy2::Mode::Standard16 };
+            let parity = match parity {
+                0 => xy2::Parity::WholeFrame,
+                1 => xy2::Parity::DataOnly,
+                _ => xy2::Parity::Ignore,
+            };
+            let pins = xy2::tx::OutPinMap { clk: 4, sync: 5, x: 6, y: 7, z: z[0].then_some(8) };
+            let link = xy2::LinkConfig { mode: mode(modes[0]), parity };
+            let tx = xy2::tx::Transmitter::new(pins, 44, link).unwrap();
+            let h = HeadTx::Xy2 { tx, mode: mode(modes[1]), z: z[1] };
+            proptest::prop_assert_eq!(run(&h, Some(&f)), xy2_reference(&h, &f));
+        }
+
         /// The XY3-100 path equals the checked reference for random frames (any
-        /// axes present at any width, commands XY3-100 can and cannot send), random
-        /// line sets and both frame sizes.
+        /// axes present at any width, also at full scale, commands XY3-100 can and
+        /// cannot send), random line sets and both frame sizes.
         #[test]
         fn xy3_matches_the_checked_encoder(
-            raw in proptest::array::uniform5((proptest::option::of(proptest::num::u32::ANY), 1u8..=32)),
-            command in proptest::option::of((proptest::bool::ANY, 0u32..0x20_0000)),
+            f in any_frame(),
             optional in proptest::array::uniform3(proptest::bool::ANY),
             big in proptest::bool::ANY,
         ) {
-            let mut f = ForwardFrame::default();
-            for (axis, (v, bits)) in f.axes.iter_mut().zip(raw) {
-                *axis = v.and_then(|v| Position::from_raw(v >> (32 - u32::from(bits)), bits).ok());
-            }
-            f.command = command.map(|(xy3, code)| if xy3 {
-                Command::Xy3(code)
-            } else {
-                Command::Xy2Enhanced { command: code as u8, parameter: 0 }
-            });
             let mut axes = vec![Axis::X, Axis::Y];
             axes.extend([Axis::Z, Axis::U, Axis::W].into_iter().zip(optional).filter(|(_, on)| *on).map(|(a, _)| a));
             let size = if big { FrameSize::Bits32 } else { FrameSize::Bits24 };

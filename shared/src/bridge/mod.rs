@@ -67,12 +67,12 @@
 //! `STATUS_LOST`) and (`gate = "link_ok"` or the latest HANS-100 MO and PA on).
 //!
 //! # Cost
-//! One input frame plus one output slot cost about 325-340 instructions on the
+//! One input frame plus one output slot cost about 310-325 instructions on the
 //! Cortex-M7 (`cargo xtask qemu`, free-running, axis map on). The per-frame path
 //! avoids moving frames around: a valid frame is translated straight into the
-//! pending slot, the output slot completes it there and moves it out once; the axis
-//! map is resolved at construction into per-axis masks and steps applied to the
-//! MSB-aligned value; the translation and completion inline into the engine; and
+//! pending slot, the output slot completes it there and moves it straight into the
+//! output; the axis map is resolved at construction into per-axis masks and steps
+//! applied to the MSB-aligned value (rounding is one saturating add); the translation and completion inline into the engine; and
 //! while running with fresh input and status the supervisor's time check is one
 //! 64-bit compare against the earliest deadline, made at the call site (see
 //! `supervision`); the full rules and the clean-up after a loss are calls.

@@ -55,13 +55,10 @@ impl AxisRoute {
     /// `p` resized, inverted and shifted as configured.
     #[inline(always)]
     fn map(&self, p: Position) -> Position {
-        // Round to the field, saturating at full scale (as `Position::resized`).
-        let a = p.aligned();
-        let a = if a & self.mask == self.mask {
-            self.mask
-        } else {
-            a.wrapping_add(self.half) & self.mask
-        };
+        // Round to the field, saturating at full scale (as `Position::resized`): in
+        // the field's top step the sum stays in it or saturates, and the mask gives
+        // the top step either way; below it the sum cannot wrap.
+        let a = p.aligned().saturating_add(self.half) & self.mask;
         let a = a ^ self.flip;
         // The offset saturates at both ends of the field instead of wrapping.
         let a = if self.down {

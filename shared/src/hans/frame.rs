@@ -24,6 +24,8 @@ const START_PAIR: u8 = 0b01;
 const STOP_BITS: u8 = 0b111;
 /// Bit offsets (in the `u128` pattern) of the 40-bit fields of DATA1, DATA2, DATA3.
 const WORD_SHIFTS: [u32; 3] = [83, 43, 3];
+/// The complement bit of every pair of a 40-bit line field (bit 2i for D_i).
+const PAIR_LOW_BITS: u64 = 0x55_5555_5555;
 /// The 125 pattern bits, left-aligned in 128 (used for byte packing).
 const ALIGNED_MASK: u128 = !0 << 3;
 
@@ -245,16 +247,16 @@ impl Frame {
         let mut words = [0u32; 3];
         for ((slot, shift), word) in words.iter_mut().zip(WORD_SHIFTS).zip(1u8..) {
             let field = ((pattern >> shift) as u64) & ((1 << 40) - 1);
-            let data = gather_even(field >> 1);
-            let complement = gather_even(field);
-            // A pair is bad where data and complement are equal.
-            let bad = !(data ^ complement) & WORD_MAX;
+            // A pair is bad where data and complement are equal: bit 2i of `bad`
+            // for the pair of D_i (checked in place, so only the data bits are
+            // gathered, and only once every pair passed).
+            let bad = !(field ^ field >> 1) & PAIR_LOW_BITS;
             if bad != 0 {
-                // The highest bad bit is the first one on the line.
-                let bit = (31 - bad.leading_zeros()) as u8;
+                // The highest bad pair is the first one on the line.
+                let bit = ((63 - bad.leading_zeros()) / 2) as u8;
                 return Err(DecodeError::Complement { word, bit });
             }
-            *slot = data;
+            *slot = gather_even(field >> 1);
         }
         let stop = (pattern & 0b111) as u8;
         if stop != STOP_BITS {

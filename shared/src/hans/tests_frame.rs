@@ -203,7 +203,56 @@ fn expected_error(t: usize, pattern: u128) -> DecodeError {
     }
 }
 
+/// `Frame::decode` spelled out bit by bit (the order of the checks and the error
+/// of the first failing one), to hold the word-parallel version to.
+fn decode_bit_by_bit(pattern: u128) -> Result<Frame, DecodeError> {
+    let bit = |t: usize| (pattern >> (124 - t)) as u32 & 1;
+    if pattern >> 125 != 0 {
+        return Err(DecodeError::Padding {
+            got: (pattern >> 125) as u8,
+        });
+    }
+    let start = (bit(0) << 1 | bit(1)) as u8;
+    if start != 0b01 {
+        return Err(DecodeError::StartPair { got: start });
+    }
+    let mut words = [0u32; 3];
+    for (w, slot) in words.iter_mut().enumerate() {
+        for i in 0..20 {
+            let t = 2 + 40 * w + 2 * i;
+            if bit(t) == bit(t + 1) {
+                return Err(DecodeError::Complement {
+                    word: w as u8 + 1,
+                    bit: 19 - i as u8,
+                });
+            }
+            *slot = *slot << 1 | bit(t);
+        }
+    }
+    let stop = (bit(122) << 2 | bit(123) << 1 | bit(124)) as u8;
+    if stop != 0b111 {
+        return Err(DecodeError::StopBits { got: stop });
+    }
+    Ok(frame(words[0], words[1], words[2]))
+}
+
 proptest! {
+    #[test]
+    fn decode_matches_bit_by_bit(
+        f in any_frame(),
+        flips in proptest::collection::vec(0usize..128, 0..6),
+        random in any::<u128>(),
+        use_random in any::<bool>(),
+    ) {
+        // A valid frame with a few bits flipped (padding included), or any
+        // pattern at all.
+        let mut p = if use_random { random } else { f.encode() };
+        for t in flips {
+            p ^= 1 << t;
+        }
+        prop_assert_eq!(Frame::decode(p), decode_bit_by_bit(p));
+    }
+
     #[test]
     fn pattern_round_trip(f in any_frame()) {
         prop_assert_eq!(Frame::decode(f.encode()), Ok(f));

@@ -29,9 +29,9 @@
 //! word up and stores it with the constant CLK-reset word: no branches on the data,
 //! four instructions per bit. Bit 20 additionally flips SYNC from set to reset. A
 //! missing Z line has no pin, so its bit selects between identical entries. The
-//! frame checks and wire words ([`Transmitter::write_frame`]) inline into the caller,
-//! so frames built there (`bridge::head_out`) are never packed into enums; only the
-//! fill is a call. About 200 instructions per frame of three lines on the Cortex-M7
+//! frame checks and wire words ([`Transmitter::write_frame`]) inline into the caller;
+//! only the fill is a call. The bridge's head encoder (`bridge::head_out`) computes
+//! the wire words itself and only fills ([`Transmitter::write_words`]). About 200 instructions per frame of three lines on the Cortex-M7
 //! (`cargo xtask qemu`), some 125 of them filling the 40 words.
 //!
 //! The per-bit stores are the floor the compiler leaves: tables of two bit times per
@@ -177,6 +177,11 @@ impl Transmitter {
     /// Words per frame slot.
     pub const fn ticks_per_frame(&self) -> usize {
         self.ticks
+    }
+
+    /// The link's mode and parity policy the frames are encoded with.
+    pub const fn link(&self) -> LinkConfig {
+        self.link
     }
 
     /// The idle word (CLK, SYNC and data low).

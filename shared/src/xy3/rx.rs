@@ -123,6 +123,11 @@ impl Lines {
         self.0 & 1 << axis as u8 != 0
     }
 
+    /// The set as a mask, bit [`Axis::index`] per line.
+    pub(crate) const fn bits(self) -> u8 {
+        self.0
+    }
+
     /// Number of configured lines.
     pub const fn count(self) -> usize {
         self.0.count_ones() as usize

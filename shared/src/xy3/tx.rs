@@ -161,6 +161,8 @@ pub struct Transmitter {
     data: [Option<u8>; 5],
     /// Set bits of every driven data pin.
     data_mask: u32,
+    /// The driven lines, bit [`Axis::index`] per line.
+    driven: u8,
     /// The rising-edge word (CLK set, data set for ones, reset for zeros) of every
     /// pattern of one bit per line: bit 0 = X, bit 1 = Y, … bit 4 = W. Its first 8
     /// entries (U and W low) are the patterns of X, Y and Z alone.
@@ -211,6 +213,12 @@ impl Transmitter {
             sync: set(pins.sync),
             data: pins.data,
             data_mask,
+            driven: pins
+                .data
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.is_some())
+                .fold(0, |m, (i, _)| m | 1 << i),
             lut,
             size: config.size,
             ticks: 2 * config.size.bits() as usize + config.idle_ticks as usize,
@@ -231,6 +239,12 @@ impl Transmitter {
     /// Whether `axis`' data line has a pin.
     pub fn drives(&self, axis: Axis) -> bool {
         matches!(self.data.get(axis.index()), Some(Some(_)))
+    }
+
+    /// The driven lines as a mask, bit [`Axis::index`] per line (one compare for
+    /// the bridge's head encoder).
+    pub(crate) const fn driven(&self) -> u8 {
+        self.driven
     }
 
     /// The tick (DMA request) rate for `frame_rate_hz` frames per second.

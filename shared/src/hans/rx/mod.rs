@@ -107,19 +107,23 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 1 970 instructions per frame for one channel at 3x (1 980 at 4x), 3 080
-//! for vote3 and 3 870 for vote5 / super (5 channels, 3x), against 2 170 / 2 310 /
-//! 3 480 / 4 500 before the gather took two windows per step, and 4 400 / 5 200 /
-//! 12 200 / 19 700 for the earlier per-channel, per-bit design. Per frame at 3x
-//! that is roughly: gathering the reference ~760 (about 44 per 32-sample window,
-//! 88 per two-window step; plus ~110 in the bench's window for table entries met
-//! for the first time, which a running line stops paying once its phases have all
-//! been seen), its decode 160, the start-edge confirmation ~80, the timing filter
-//! ~70, copying the rings ~5 per word and channel (~120 per channel), per other
-//! channel ~12 per window for the centre compare (~190), and ~600 of per-frame
-//! bookkeeping (`frame`, `next`, `evaluate`, `need`) of which ~120 per extra
-//! channel. **Still over the 1 200-instruction budget of the worst path**; what is
-//! left is listed in the README ("Known limits").
+//! About 1 940 instructions per frame for one channel at 3x (1 945 at 4x), 2 980
+//! for vote3 and 3 580 for vote5 / super (5 channels, 3x); as the firmware feeds
+//! it (40 MHz, 64-word chunks) 1 910 in normal mode and 3 700 in super mode.
+//! Before the five-ring store 1 970 / 1 980 / 3 080 / 3 870 (firmware 1 940 /
+//! 3 990), before the gather took two windows per step 2 170 / 2 310 / 3 480 /
+//! 4 500, and 4 400 / 5 200 / 12 200 / 19 700 for the earlier per-channel, per-bit
+//! design. Per frame at 3x that is roughly: gathering the reference ~760 (about 44
+//! per 32-sample window, 88 per two-window step; plus ~110 in the bench's window
+//! for table entries met for the first time, which a running line stops paying
+//! once its phases have all been seen), its decode 125, the start-edge
+//! confirmation ~80, the timing filter ~70, copying the rings (one ring: ~5 per
+//! word with the per-call overhead, ~130 per frame; all five in vote5 / super: one
+//! pass, ~2.5 per word and channel plus ~120 per call, ~470 per frame for all
+//! five), per other channel ~12 per window for the centre compare (~200), and ~600
+//! of per-frame bookkeeping (`frame`, `next`, `evaluate`, `need`) of which ~120 per
+//! extra channel. **Still over the 1 200-instruction budget of the worst path**;
+//! what is left is listed in the README ("Known limits").
 
 pub mod channel;
 pub mod modes;
@@ -477,6 +481,19 @@ impl HansRx {
     fn store(&mut self, chunks: &[&[u16]], at: usize, n: usize) {
         // Read once: the ring writes could alias these fields for the compiler.
         let (written, used) = (self.written, self.used);
+        self.written = written.wrapping_add(n as u32);
+        // All five channels (vote5, super): one pass over the words for all rings.
+        if used == 0b1_1111 {
+            let src = core::array::from_fn(|k| {
+                chunks
+                    .get(k)
+                    .and_then(|c| c.get(at..at + n))
+                    .unwrap_or_default()
+            });
+            if Ring::write_all(&mut self.rings, written, src) {
+                return;
+            }
+        }
         for (k, (ring, chunk)) in self.rings.iter_mut().zip(chunks).enumerate() {
             if used & (1 << k) != 0 {
                 if let Some(src) = chunk.get(at..at + n) {
@@ -484,7 +501,6 @@ impl HansRx {
                 }
             }
         }
-        self.written = written.wrapping_add(n as u32);
     }
 
     /// The stream word (modulo 4 096) before which every sample the next frame

@@ -64,6 +64,13 @@ impl Acc {
     }
 }
 
+/// The window of two consecutive stream words: the earlier one in the high half.
+/// Both are fetched with one (unaligned) load and swapped.
+#[inline(always)]
+fn pair(&[x, y]: &[u16; 2]) -> u32 {
+    (u32::from(x) | u32::from(y) << 16).rotate_right(16)
+}
+
 /// One channel's samples, stored as windows: slot `j % 32` holds window `j` (words
 /// `2j` and `2j + 1`), so reading a window is one load.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -107,16 +114,61 @@ impl Ring {
                 at = at.wrapping_add(1);
             }
         }
-        let mut pairs = src.chunks_exact(2);
-        for pair in &mut pairs {
-            if let (Some(slot), [a, b]) = (self.slot_mut(at >> 1), pair) {
-                *slot = u32::from(*a) << 16 | u32::from(*b);
+        let (pairs, rest) = src.as_chunks::<2>();
+        let mut j = at >> 1;
+        for p in pairs {
+            if let Some(slot) = self.slot_mut(j) {
+                *slot = pair(p);
             }
-            at = at.wrapping_add(2);
+            j = j.wrapping_add(1);
         }
-        if let (Some(&w), Some(slot)) = (pairs.remainder().first(), self.slot_mut(at >> 1)) {
+        if let (Some(&w), Some(slot)) = (rest.first(), self.slot_mut(j)) {
             *slot = *slot & 0xFFFF | u32::from(w) << 16;
         }
+    }
+
+    /// [`Ring::write`] of all five rings at once (vote5 and super mode): one pass
+    /// over the word pairs stores each pair of every channel, so the loop and the
+    /// slot index are paid once per pair instead of once per pair and channel, and
+    /// the per-call set-up once instead of five times. `src[k]` goes to `rings[k]`;
+    /// all five must have the same length (else nothing is stored and false is
+    /// returned).
+    pub fn write_all(rings: &mut [Ring; 5], at: u32, src: [&[u16]; 5]) -> bool {
+        let n = src[0].len();
+        if src.iter().any(|s| s.len() != n) || n == 0 {
+            return n == 0 && src.iter().all(|s| s.is_empty());
+        }
+        let mut at = at;
+        let mut src = src;
+        if at & 1 == 1 {
+            for (ring, s) in rings.iter_mut().zip(src.iter_mut()) {
+                if let (Some((&w, rest)), Some(slot)) = (s.split_first(), ring.slot_mut(at >> 1)) {
+                    *slot = *slot & 0xFFFF_0000 | u32::from(w);
+                    *s = rest;
+                }
+            }
+            at = at.wrapping_add(1);
+        }
+        let [a, b, c, d, e] = src.map(|s| s.as_chunks::<2>());
+        let mut j = at >> 1;
+        for ((((pa, pb), pc), pd), pe) in a.0.iter().zip(b.0).zip(c.0).zip(d.0).zip(e.0) {
+            let t = j as usize % (RING_WORDS / 2);
+            // Indexed, not destructured: the five slots are then one base register
+            // plus constant offsets.
+            for (k, p) in [pa, pb, pc, pd, pe].into_iter().enumerate() {
+                if let Some(slot) = rings.get_mut(k).and_then(|r| r.windows.get_mut(t)) {
+                    *slot = pair(p);
+                }
+            }
+            j = j.wrapping_add(1);
+        }
+        let [ra, rb, rc, rd, re] = rings;
+        for (ring, rest) in [(ra, a.1), (rb, b.1), (rc, c.1), (rd, d.1), (re, e.1)] {
+            if let (Some(&w), Some(slot)) = (rest.first(), ring.slot_mut(j)) {
+                *slot = *slot & 0xFFFF | u32::from(w) << 16;
+            }
+        }
+        true
     }
 
     fn slot_mut(&mut self, j: u32) -> Option<&mut u32> {
@@ -136,6 +188,13 @@ impl Ring {
         } else {
             w & 0xFFFF
         }
+    }
+
+    /// Windows `j` .. `j + n` as one slice, if they do not wrap around the ring.
+    #[inline(always)]
+    fn span(&self, j: u32, n: usize) -> Option<&[u32]> {
+        let t = j as usize % (RING_WORDS / 2);
+        self.windows.get(t..t + n)
     }
 
     /// Window `j` (32 samples from sample `32 j`).
@@ -285,7 +344,19 @@ impl Ring {
         let a = d.unsigned_abs() & 31;
         // `a` is 1..=31 in the shifted branches, so no shift below reaches 32.
         let (l, r) = (a, 32u32.wrapping_sub(a) & 31);
+        // Most frames' windows do not wrap around the ring: then they are one slice
+        // and the loops need no index arithmetic per window.
+        let n = windows.len();
         if d > 0 && a != 0 {
+            if let Some(span) = self.span(j, n + 1) {
+                let (&first, rest) = span.split_first().unwrap_or((&0, &[]));
+                let mut here = first;
+                for (&[m, v], &next) in windows.iter().zip(rest) {
+                    bad |= ((here << l | next >> r) & m) ^ v;
+                    here = next;
+                }
+                return bad == 0;
+            }
             let mut here = self.window(j);
             for &[m, v] in windows {
                 j = j.wrapping_add(1);
@@ -294,6 +365,15 @@ impl Ring {
                 here = next;
             }
         } else if d < 0 && a != 0 {
+            if let Some(span) = self.span(j.wrapping_sub(1), n + 1) {
+                let (&first, rest) = span.split_first().unwrap_or((&0, &[]));
+                let mut prev = first;
+                for (&[m, v], &here) in windows.iter().zip(rest) {
+                    bad |= ((prev << r | here >> l) & m) ^ v;
+                    prev = here;
+                }
+                return bad == 0;
+            }
             let mut prev = self.window(j.wrapping_sub(1));
             for &[m, v] in windows {
                 let here = self.window(j);

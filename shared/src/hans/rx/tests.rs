@@ -526,3 +526,4 @@ proptest! {
 
 mod dead;
 mod periods;
+mod ring;

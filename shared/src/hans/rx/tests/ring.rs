@@ -1,0 +1,104 @@
+//! The ring's fast paths held to their general versions: the five-ring store of
+//! vote5 / super mode against five single-ring stores, and the centre compare's
+//! slice walk (windows that do not wrap) against a sample-by-sample compare.
+
+use super::super::ring::{Centres, Ring, RING_WORDS};
+use super::super::table::Table;
+use proptest::prelude::*;
+
+/// Five rings filled with `fill` (per ring: words stored from stream word `from`).
+fn rings(fill: &[Vec<u16>; 5], from: u32) -> [Ring; 5] {
+    let mut rings = [Ring::default(); 5];
+    for (ring, words) in rings.iter_mut().zip(fill) {
+        for (k, chunk) in words.chunks(RING_WORDS / 2).enumerate() {
+            ring.write(from.wrapping_add((k * RING_WORDS / 2) as u32), chunk);
+        }
+    }
+    rings
+}
+
+/// Sample `s` (modulo the ring) of `ring`.
+fn sample(ring: &Ring, s: i64) -> u32 {
+    let s = s.rem_euclid((RING_WORDS * 16) as i64) as u32;
+    ring.window(s >> 5) >> (31 - (s & 31)) & 1
+}
+
+proptest! {
+    #[test]
+    fn write_all_matches_five_writes(
+        fill in proptest::array::uniform5(proptest::collection::vec(any::<u16>(), RING_WORDS)),
+        from in any::<u32>(),
+        at in any::<u32>(),
+        len in 0usize..=RING_WORDS / 2,
+        words in proptest::array::uniform5(proptest::collection::vec(any::<u16>(), RING_WORDS / 2)),
+        short in proptest::option::of(0usize..5),
+    ) {
+        let before = rings(&fill, from);
+        let src: [&[u16]; 5] = core::array::from_fn(|k| {
+            let n = if short == Some(k) && len > 0 { len - 1 } else { len };
+            &words[k][..n]
+        });
+        let mut fast = before;
+        let stored = Ring::write_all(&mut fast, at, src);
+        if short.is_some() && len > 0 {
+            // Unequal lengths: refused, nothing stored.
+            prop_assert!(!stored);
+            prop_assert_eq!(fast, before);
+        } else {
+            prop_assert!(stored);
+            let mut general = before;
+            for (ring, s) in general.iter_mut().zip(src) {
+                ring.write(at, s);
+            }
+            prop_assert_eq!(fast, general);
+        }
+    }
+
+    /// `agrees` is true exactly when the channel, `d` samples later, has the
+    /// reference's sample at every centre, wherever the frame lies in the ring
+    /// (wrapping or not) and for matching, shifted and corrupted channels.
+    #[test]
+    fn agrees_matches_sample_by_sample(
+        reference in proptest::collection::vec(any::<u16>(), RING_WORDS),
+        noise in proptest::collection::vec(any::<u16>(), RING_WORDS),
+        d in -20i32..=20,
+        start in 0u32..(RING_WORDS as u32 * 16),
+        ratio in (3.0f64..4.0).prop_map(|r| (r * 65536.0) as u32),
+        flip in proptest::option::of(0u32..(RING_WORDS as u32 * 16)),
+        random_channel in any::<bool>(),
+    ) {
+        let mut ref_ring = Ring::default();
+        ref_ring.write(0, &reference[..RING_WORDS / 2]);
+        ref_ring.write(RING_WORDS as u32 / 2, &reference[RING_WORDS / 2..]);
+        // The channel: the reference delayed by `d` samples (or noise), with one
+        // sample flipped.
+        let total = RING_WORDS * 16;
+        let mut words = [0u16; RING_WORDS];
+        for s in 0..total {
+            let bit = if random_channel {
+                u32::from(noise[s / 16] >> (15 - s % 16) & 1)
+            } else {
+                sample(&ref_ring, s as i64 - i64::from(d))
+            } ^ u32::from(flip == Some(s as u32));
+            words[s / 16] |= (bit as u16) << (15 - s % 16);
+        }
+        let mut channel = Ring::default();
+        channel.write(0, &words[..RING_WORDS / 2]);
+        channel.write(RING_WORDS as u32 / 2, &words[RING_WORDS / 2..]);
+        let mut table = Table::new(ratio as i32);
+        let mut centres = Centres::default();
+        let first = (start << 16).wrapping_add(ratio / 2);
+        ref_ring.gather::<true>(&mut table, first, ratio, &mut centres);
+        let mut want = true;
+        for (i, [m, v]) in centres.windows[..centres.count].iter().enumerate() {
+            for b in 0..32 {
+                if m >> (31 - b) & 1 == 1 {
+                    let s = i64::from(centres.first) * 32 + (i * 32 + b) as i64;
+                    prop_assert_eq!(v >> (31 - b) & 1, sample(&ref_ring, s));
+                    want &= sample(&channel, s + i64::from(d)) == sample(&ref_ring, s);
+                }
+            }
+        }
+        prop_assert_eq!(channel.agrees(&centres, d), want);
+    }
+}
