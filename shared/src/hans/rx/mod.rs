@@ -39,8 +39,8 @@
 //!    the real edge reads early) corrects phase and rate with an alpha-beta filter;
 //!    for its first [`timing::YOUNG`] frames a lock is instead the least-squares
 //!    line through its start edges and the 61 mid-pair edges (every complement
-//!    pair has one) of each frame its reference channel verified, and of the frame
-//!    between its two start edges ([`phase`]): a start edge per frame left a
+//!    pair has one) of each frame its reference channel verified ([`phase`]): a
+//!    start edge per frame left a
 //!    young lock's phase ~0.35 sample off at ±25 % jitter, the pairs make it a few
 //!    hundredths; a young lock is dropped after six failures in a row, not
 //!    three ([`timing::Timing::relock_after`]);
@@ -565,9 +565,6 @@ impl HansRx {
             }
             if let Some(ch) = self.channels.get_mut(n) {
                 ch.align(0);
-            }
-            if let Some(ring) = self.rings.get(n) {
-                phase::learn_locked_frame(ring, &mut self.table, &mut self.timing);
             }
             self.need = self.need();
         }

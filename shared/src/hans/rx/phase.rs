@@ -34,10 +34,8 @@
 //! [`super::ring::Ring::first_fall`]). An edge outside the window saturates at its
 //! border, so one glitch moves a frame's sum by at most half a bit.
 
-use super::ring::{Centres, Ring, FRAC, HALF};
-use super::table::Table;
-use super::timing::Timing;
-use crate::hans::{Frame, FRAME_BITS};
+use super::ring::{Ring, FRAC, HALF};
+use crate::hans::FRAME_BITS;
 
 /// Pairs per frame: the start pair and 3 x 20 data pairs.
 const PAIRS: u32 = 61;
@@ -61,17 +59,6 @@ pub struct Points {
 }
 
 impl Points {
-    /// The same points seen from the next frame's start edge (`k` one frame on).
-    pub fn from_next_frame(self) -> Points {
-        Points {
-            n: self.n,
-            k: self.k - BITS * self.n,
-            kk: self.kk - 2 * BITS * self.k + BITS * BITS * self.n,
-            r: self.r,
-            kr: self.kr - BITS * self.r,
-        }
-    }
-
     /// One start edge measured `err` (Q16) after the timing's prediction of it (bit
     /// index 0 of the new frame).
     pub fn start_edge(err: i32) -> Points {
@@ -141,24 +128,6 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
     }
 }
 
-/// Right after a lock (`timing` just set from two start edges on `ring`'s
-/// channel), reads the frame between those two edges, whose samples are still in
-/// the ring, and if it verifies adds its mid-pair edges to the fit. Its bits lie
-/// between two measured edges, so the lock's period error (up to ~2.5 samples over
-/// a frame at ±25 % jitter) puts its centres at most half that off, where the
-/// next frame, extrapolated, would be read up to the whole error off at its end
-/// and fail: the lock starts with 63 edges instead of 2.
-pub fn learn_locked_frame(ring: &Ring, table: &mut Table, timing: &mut Timing) {
-    let ratio = timing.ratio;
-    let start = timing.start.wrapping_sub(timing.period as u32);
-    table.follow(ratio);
-    let first = start.wrapping_add((ratio / 2) as u32).wrapping_add(HALF);
-    let pattern = ring.gather::<false>(table, first, ratio as u32, &mut Centres::default());
-    if Frame::decode(pattern).is_ok() {
-        timing.refine(&mid_pairs(ring, start, ratio, pattern).from_next_frame());
-    }
-}
-
 /// The normal-equation matrix of the fit (see the module docs), bit indices from
 /// the current frame's start edge.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
@@ -207,8 +176,9 @@ impl Fit {
         if det <= 0 {
             return Correction::default();
         }
-        // The sums stay far inside i64 over a young lock (see `timing::YOUNG`):
-        // |k| < 2^13, n < 2^12, residuals < 2^18, so each product < 2^60.
+        // The sums stay far inside i64 over a young lock (`timing::YOUNG` frames of
+        // at most 62 points): n < 2^12, |Σk| < 2^24, Σk² < 2^36, |Σr| < 2^24,
+        // |Σkr| < 2^30, so each product is below 2^61.
         let start = (self.kk * p.r - self.k * p.kr) / det;
         let period = BITS * (self.n * p.kr - self.k * p.r) / det;
         Correction {
