@@ -346,9 +346,10 @@ fn limits_rate_offset_and_jitter() {
         for (i, j) in jitters.into_iter().enumerate() {
             let (l, wrong) = loss(fs, 0.0, j, N, 200 + i as u64);
             print!("{l:>7.1}{}", if wrong > 0 { '!' } else { ' ' });
-            // The receiver confirms each frame's start edges within 3/8 of a bit
-            // (`shared::hans::rx`): beyond +-20 % jitter a few good frames fail it.
-            if j <= 0.2 {
+            // The spec's ±25 %: a young lock fits its phase and rate on every
+            // verified frame's mid-pair edges (`shared::hans::rx::phase`) and the
+            // start edges are confirmed within 3/8 of a bit, centred.
+            if j <= 0.25 {
                 assert_eq!(
                     (l, wrong),
                     (0.0, 0),
@@ -359,4 +360,104 @@ fn limits_rate_offset_and_jitter() {
         println!();
     }
     println!("(! = a frame that was not sent passed every check)");
+}
+
+/// One lock of normal mode on one clean channel over `n` frames (`seed` chooses
+/// the frames, the jitter, the sampling phase and the chunking): the frames lost
+/// after [`LOCK_FRAMES`], how many of them after the first published frame (the
+/// rest are a slow acquisition), and the published frames that were never sent.
+fn run_lock(fs: f64, offset_pct: f64, jitter: f64, n: usize, seed: u64) -> (usize, usize, usize) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let frames = random_frames(n, &mut rng);
+    let line = Line {
+        fs_hz: fs,
+        offset_pct,
+        jitter,
+        skew: [0.0; 5],
+    };
+    let (words, _) = capture(&frames, line, [Fault::None; 5], seed);
+    let words = vec![words[0].clone()];
+    let (events, _) = receive(&words, fs, Mode::Normal { channel: 1 }, seed);
+    let got = published(&events);
+    let (lost, wrong) = score(&frames, &got, LOCK_FRAMES);
+    let first = got
+        .iter()
+        .find_map(|f| frames.iter().position(|s| s == f))
+        .unwrap_or(n);
+    let (late, _) = score(&frames, &got, first.max(LOCK_FRAMES));
+    (lost, late, wrong)
+}
+
+/// What a point of [`limits_over_many_locks`] must show besides no wrong frame.
+#[derive(Clone, Copy, PartialEq)]
+enum Must {
+    /// No lock loses a frame after [`LOCK_FRAMES`].
+    LoseNothing,
+    /// No lock loses a frame after its first published one.
+    KeepPublishing,
+    /// Measured only.
+    Measure,
+}
+
+/// The young lock is where jitter costs frames (README "Known limits"): one seed per
+/// point says little, so this runs many locks per point (each its own frames,
+/// jitter, sampling phase and, for the "±1 %" rows, a random offset within ±1 %)
+/// and prints how many of them lost frames, how many lost any after their first
+/// published frame (the rest: an acquisition longer than [`LOCK_FRAMES`]), mean and
+/// worst loss (with `--nocapture`). Nothing wrong may be published at any point.
+#[test]
+fn limits_over_many_locks() {
+    const LOCKS: u64 = 64;
+    const N: usize = 80;
+    let scored = N - LOCK_FRAMES - 1;
+    println!(
+        "HANS-100 receiver over {LOCKS} locks per point ({scored} frames scored after {LOCK_FRAMES}), normal mode"
+    );
+    println!(
+        "{:>9} {:>9} {:>7} | {:>12} {:>16} {:>7} {:>8}",
+        "fs MHz", "jitter ±", "offset", "locks losing", "after publishing", "mean %", "worst %"
+    );
+    // (jitter, offset in percent (None: random within ±1 %), requirement)
+    let points = [
+        (0.20, Some(0.0), Must::LoseNothing),
+        (0.25, Some(0.0), Must::KeepPublishing),
+        (0.25, None, Must::Measure),
+        (0.0, Some(2.5), Must::Measure),
+        (0.30, Some(0.0), Must::Measure),
+    ];
+    for fs in [37.5e6, 40e6, 50e6] {
+        for (p, &(jitter, offset, must)) in points.iter().enumerate() {
+            let (mut losing, mut late_locks, mut lost_all, mut worst) = (0, 0, 0, 0);
+            for lock in 0..LOCKS {
+                let seed = 10_000 * p as u64 + lock;
+                let offset = offset.unwrap_or_else(|| {
+                    ChaCha8Rng::seed_from_u64(seed ^ 0xA5A5).random_range(-1.0..=1.0)
+                });
+                let (lost, late, wrong) = run_lock(fs, offset, jitter, N, seed);
+                let at = format!("{fs} Hz, ±{jitter} bit, {offset:.2} %, seed {seed}");
+                assert_eq!(wrong, 0, "published a frame that was not sent: {at}");
+                match must {
+                    Must::LoseNothing => assert_eq!(lost, 0, "lost frames: {at}"),
+                    Must::KeepPublishing => assert_eq!(late, 0, "lost after publishing: {at}"),
+                    Must::Measure => {}
+                }
+                losing += usize::from(lost > 0);
+                late_locks += usize::from(late > 0);
+                lost_all += lost;
+                worst = worst.max(lost);
+            }
+            let offset = offset.map_or("±1 %".to_string(), |o| format!("{o:.1} %"));
+            println!(
+                "{:>9.1} {:>8.0}% {:>7} | {:>9}/{LOCKS} {:>13}/{LOCKS} {:>7.2} {:>8.1}",
+                fs / 1e6,
+                jitter * 100.0,
+                offset,
+                losing,
+                late_locks,
+                100.0 * lost_all as f64 / (scored as f64 * LOCKS as f64),
+                100.0 * worst as f64 / scored as f64,
+            );
+        }
+    }
+    println!("(no wrong frame at any point)");
 }

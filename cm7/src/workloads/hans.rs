@@ -13,9 +13,11 @@ use shared::hans::rx::{HansRx, Mode, RxEvent};
 use shared::hans::tx::Transmitter;
 use shared::hans::{Frame, RING_BYTES};
 
-/// Frames decoded before the window: acquisition (hunt, rate measurement) and the
-/// settling of the per-channel delays, so the window shows the steady state.
-const WARM_FRAMES: usize = 24;
+/// Frames decoded before the window: acquisition (hunt, rate measurement), the
+/// young lock that fits its timing on every frame's mid-pair edges (until
+/// `shared::hans::rx::timing::YOUNG`) and the settling of the per-channel delays,
+/// so the window shows the steady state.
+const WARM_FRAMES: usize = 36;
 /// Frames decoded inside the window.
 const MEASURED: usize = 32;
 /// Words per channel for all frames at up to 4x (500 samples per frame), plus slack.

@@ -30,8 +30,10 @@ const FS_HZ: u32 = 37_500_000;
 /// Samples per frame at 3x (125 bits).
 const FRAME_SAMPLES: usize = 375;
 /// Frames decoded before the window (acquisition, including the receiver's young
-/// lock that publishes nothing, and bridge recovery).
-const WARM_FRAMES: usize = 14;
+/// lock, which publishes nothing for its first frames and fits its timing on every
+/// frame's mid-pair edges until `shared::hans::rx::timing::YOUNG`, and bridge
+/// recovery): the window measures the steady state.
+const WARM_FRAMES: usize = 36;
 /// Frame periods inside the window.
 const MEASURED: usize = 32;
 /// Words per channel for every frame plus one spare frame.

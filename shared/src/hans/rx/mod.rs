@@ -19,7 +19,8 @@
 //!    frame's samples up to its successor's start edge have arrived on every
 //!    channel, it is decoded in one go and published right away if its timing is
 //!    **confirmed**: the channel's start edge and the next frame's lie within 3/8
-//!    of a bit of where the bit timing the pattern was read with puts them. Else the
+//!    of a bit (centred on the samples such an edge can give) of where the bit
+//!    timing the pattern was read with puts them. Else the
 //!    phase may have drifted within the frame (a false or missing start edge moved
 //!    the tracking), and a tail read a bit off is random content whose complement
 //!    pairs pass at 2^-n: the channel counts a check failure instead. The
@@ -36,6 +37,13 @@
 //!    its prediction (exactly one falling edge lies there on a good line). The
 //!    upper median of the edges of the channels that just verified (a glitch before
 //!    the real edge reads early) corrects phase and rate with an alpha-beta filter;
+//!    for its first [`timing::YOUNG`] frames a lock is instead the least-squares
+//!    line through its start edges and the 61 mid-pair edges (every complement
+//!    pair has one) of each frame its reference channel verified ([`phase`]): a
+//!    start edge per frame left a
+//!    young lock's phase ~0.35 sample off at ±25 % jitter, the pairs make it a few
+//!    hundredths; a young lock is dropped after six failures in a row, not
+//!    three ([`timing::Timing::relock_after`]);
 //!    each channel's delay follows its own deviation from that consensus (averaged,
 //!    steps clamped to a sample). A lock publishes nothing until it has measured
 //!    [`timing::SETTLED`] start edges (its first gains are large: a rate measured
@@ -120,6 +128,7 @@
 
 pub mod channel;
 pub mod modes;
+pub mod phase;
 pub mod ring;
 pub mod table;
 pub mod timing;
@@ -512,7 +521,7 @@ impl HansRx {
         let last = start
             .wrapping_add((t.ratio as u32).wrapping_mul(FRAME_BITS as u32))
             .wrapping_add(confirm_window(t.ratio))
-            .wrapping_add(HALF);
+            .wrapping_add((1 << FRAC) - 1);
         // Two samples of slack: a table-gathered centre (or a shifted compare) may
         // fall one sample after the exact position.
         (last.wrapping_add(late as u32).wrapping_add(2 << FRAC) >> 20).wrapping_add(1)
@@ -649,6 +658,16 @@ impl HansRx {
             }
         };
         let verified = self.evaluate(&patterns, aligned, same, confirmed, ref_pattern, &mut gated);
+        // A young lock learns phase and rate from the verified reference's mid-pair
+        // edges (`timing::YOUNG`).
+        if let (true, Some(ring)) = (
+            verified & (1 << reference) != 0 && self.timing.young(),
+            self.rings.get(reference),
+        ) {
+            let at = start.wrapping_add(ref_delay as u32);
+            let p = phase::mid_pairs(ring, at, ratio, ref_pattern);
+            self.timing.refine(&p);
+        }
         self.pending = Some((verified, same));
     }
 
@@ -668,9 +687,16 @@ impl HansRx {
         let w = confirm_window(ratio);
         let head = start.wrapping_add(delay as u32);
         let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
+        // Centred: the low samples an edge within `w` of `at` can give (the first
+        // sample after the edge, `ceil(at - w)..=ceil(at + w)`; `first_fall` rounds
+        // its bounds down).
+        let up = (1 << FRAC) - 1;
         [head, next].into_iter().all(|at| {
-            ring.first_fall(at.wrapping_sub(w), at.wrapping_add(w).wrapping_add(HALF))
-                .is_some()
+            ring.first_fall(
+                at.wrapping_sub(w).wrapping_add(up),
+                at.wrapping_add(w).wrapping_add(up),
+            )
+            .is_some()
         })
     }
 
@@ -738,7 +764,7 @@ impl HansRx {
                     ch.failures = ch.failures.saturating_add(1);
                     // A channel that keeps failing is taken to be misaligned (a
                     // delay measured on a glitch): it aligns again from scratch.
-                    if ch.failures >= RELOCK_AFTER && ch.unalign() {
+                    if ch.failures >= self.timing.relock_after() && ch.unalign() {
                         stats.resyncs = stats.resyncs.wrapping_add(1);
                         sink(RxEvent::Fault {
                             channel: Some(number(n)),
@@ -898,7 +924,7 @@ impl HansRx {
             self.dry = self.dry.saturating_add(1);
             // A lock that yields nothing but failures is a false lock (on a data
             // edge that happened to repeat a frame apart, or a rate far off).
-            if self.dry >= RELOCK_AFTER {
+            if self.dry >= self.timing.relock_after() {
                 self.lose(sink);
             }
         } else {
