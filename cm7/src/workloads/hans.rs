@@ -17,7 +17,7 @@ use shared::hans::{Frame, RING_BYTES};
 /// young lock that fits its timing on every frame's mid-pair edges (until
 /// `shared::hans::rx::timing::YOUNG`) and the settling of the per-channel delays,
 /// so the window shows the steady state.
-const WARM_FRAMES: usize = 36;
+const WARM_FRAMES: usize = 100;
 /// Frames decoded inside the window.
 const MEASURED: usize = 32;
 /// Words per channel for all frames at up to 4x (500 samples per frame), plus slack.
@@ -70,6 +70,11 @@ pub const WORKLOADS: &[Workload] = &[
         run: |w| rx(w, FW_FS_HZ, Mode::Super, FW_CHUNK),
     },
     Workload {
+        name: "hans rx: firmware, super, young lock (frames 4..36 of a lock)",
+        frames: MEASURED as u32,
+        run: |w| rx_from(w, FW_FS_HZ, Mode::Super, FW_CHUNK, YOUNG_FROM),
+    },
+    Workload {
         name: "hans tx: slot update",
         frames: MEASURED as u32,
         run: tx,
@@ -80,7 +85,15 @@ pub const WORKLOADS: &[Workload] = &[
 struct Capture {
     words: [[u16; WORDS]; 5],
     len: usize,
-    warm: usize,
+    /// Bits per sample, Q16.
+    step: u64,
+}
+
+impl Capture {
+    /// The first word at or after the start of frame `k`.
+    fn word_of_frame(&self, k: usize) -> usize {
+        (((k as u64 * 125) << 16) / self.step / 16) as usize
+    }
 }
 
 /// Samples back-to-back random frames at `fs_hz` (Q16 fixed point throughout).
@@ -96,7 +109,7 @@ fn capture(fs_hz: u32) -> Capture {
     let mut cap = Capture {
         words: [[0; WORDS]; 5],
         len: 0,
-        warm: 0,
+        step,
     };
     // Skew per channel in Q16 bits (about -0.3..+0.3 bit, i.e. about ±1 sample).
     let skews: [u64; 5] = [0x4000, 0x0000, 0x9000, 0x2000, 0x7000];
@@ -124,13 +137,23 @@ fn capture(fs_hz: u32) -> Capture {
         w += 1;
     }
     cap.len = w;
-    cap.warm = ((WARM_FRAMES as u64 * 125) << 16) as usize / step as usize / 16;
     cap
 }
 
 /// Decodes the warm-up outside the window, then the measured frames inside it,
 /// pushed `chunk` words at a time (`WHOLE`: in one push).
 fn rx(w: &mut Window, fs_hz: u32, mode: Mode, chunk: usize) -> u32 {
+    rx_from(w, fs_hz, mode, chunk, WARM_FRAMES)
+}
+
+/// Frame of the capture at which the young-lock workload starts measuring: the
+/// hunt locks within the first two frames, so the window covers the lock's young
+/// fit (`shared::hans::rx::timing::YOUNG` frames) and hardly anything after it.
+const YOUNG_FROM: usize = 4;
+
+/// [`rx`] with the window starting at frame `first` of the capture and covering
+/// [`MEASURED`] frames (up to the capture's end for the steady-state window).
+fn rx_from(w: &mut Window, fs_hz: u32, mode: Mode, chunk: usize, first: usize) -> u32 {
     let cap = black_box(capture(fs_hz));
     let Ok(mut rx) = HansRx::new(fs_hz, mode) else {
         return 0;
@@ -142,11 +165,15 @@ fn rx(w: &mut Window, fs_hz: u32, mode: Mode, chunk: usize) -> u32 {
         }
     };
     let chunks = |from: usize, to: usize| cap.words.each_ref().map(|c| &c[from..to]);
-    rx.push(&chunks(0, cap.warm), &mut sink);
+    let (from, end) = (
+        cap.word_of_frame(first),
+        cap.word_of_frame(first + MEASURED + 1).min(cap.len),
+    );
+    rx.push(&chunks(0, from), &mut sink);
     w.measure(|| {
-        let mut at = cap.warm;
-        while at < cap.len {
-            let to = at.saturating_add(chunk).min(cap.len);
+        let mut at = from;
+        while at < end {
+            let to = at.saturating_add(chunk).min(end);
             rx.push(&chunks(at, to), &mut sink);
             at = to;
         }

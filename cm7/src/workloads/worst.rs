@@ -33,7 +33,7 @@ const FRAME_SAMPLES: usize = 375;
 /// lock, which publishes nothing for its first frames and fits its timing on every
 /// frame's mid-pair edges until `shared::hans::rx::timing::YOUNG`, and bridge
 /// recovery): the window measures the steady state.
-const WARM_FRAMES: usize = 36;
+const WARM_FRAMES: usize = 100;
 /// Frame periods inside the window.
 const MEASURED: usize = 32;
 /// Words per channel for every frame plus one spare frame.

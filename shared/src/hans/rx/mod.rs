@@ -107,9 +107,15 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 1 930 instructions per frame for one channel at 3x (1 940 at 4x), 2 970
-//! for vote3 and 3 560 for vote5 / super (5 channels, 3x); as the firmware feeds
-//! it (40 MHz, 64-word chunks) 1 900 in normal mode and 3 660 in super mode.
+//! About 1 880 instructions per frame for one channel at 3x (1 960 at 4x), 2 920
+//! for vote3 and 3 570 for vote5 / super (5 channels, 3x); as the firmware feeds
+//! it (40 MHz, 64-word chunks) 1 920 in normal mode and 3 690 in super mode, once
+//! a lock has settled: the young lock's fit ([`phase`], its first
+//! [`timing::YOUNG`] frames) costs roughly 1 200 more per frame (an estimate, not
+//! benched), and for ~70 frames after it the rate settles from the fit's
+//! estimate, dropping the gather table at every step (~370 more per frame,
+//! measured over frames 36..68 of a lock). Before the young fit and centred confirmation 1 930 / 1 940 /
+//! 2 970 / 3 560 (firmware 1 900 / 3 660).
 //! Before the five-ring store took the chunks and range itself 1 940 / 1 945 /
 //! 2 980 / 3 580 (firmware 1 910 / 3 700), before the five-ring store 1 970 /
 //! 1 980 / 3 080 / 3 870 (firmware 1 940 / 3 990), before the gather took two windows per step 2 170 / 2 310 / 3 480 /
