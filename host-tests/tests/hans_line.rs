@@ -299,18 +299,7 @@ fn broken_channels_never_yield_garbage() {
 /// number of published frames that were not sent (wrong frames that happened to pass
 /// every check: possible only far beyond the specified impairments).
 fn loss(fs: f64, offset_pct: f64, jitter: f64, n: usize, seed: u64) -> (f64, usize) {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let frames = random_frames(n, &mut rng);
-    let line = Line {
-        fs_hz: fs,
-        offset_pct,
-        jitter,
-        skew: [0.0; 5],
-    };
-    let (words, _) = capture(&frames, line, [Fault::None; 5], seed);
-    let words = vec![words[0].clone()];
-    let (events, _) = receive(&words, fs, Mode::Normal { channel: 1 }, seed);
-    let (lost, wrong) = score(&frames, &published(&events), LOCK_FRAMES);
+    let (lost, _, wrong) = run_lock(fs, offset_pct, jitter, n, seed);
     (100.0 * lost as f64 / (n - LOCK_FRAMES - 1) as f64, wrong)
 }
 
