@@ -113,8 +113,10 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
         for _ in 0..count {
             let lo = lo_q >> FRAC;
             let n = (hi_q >> FRAC).wrapping_sub(lo) & 0xFFFF;
+            // Window `lo >> 5` and the next (`window` takes them modulo the ring).
             let (j, s) = (lo >> 5, lo & 31);
-            let x = ring.window(j) << s | (ring.window(j.wrapping_add(1)) >> 1) >> (31 - s);
+            let next = lo_q.wrapping_add(1 << (FRAC + 5)) >> (FRAC + 5);
+            let x = ring.window(j) << s | (ring.window(next) >> 1) >> (31 - s);
             // Samples at the pair's first level, counted from the window's start.
             let first = 0u32.wrapping_sub(bits >> 31);
             let c = lo.wrapping_add((x ^ first).leading_zeros().min(n));
