@@ -110,9 +110,12 @@
 //! About 1 880 instructions per frame for one channel at 3x (1 960 at 4x), 2 920
 //! for vote3 and 3 570 for vote5 / super (5 channels, 3x); as the firmware feeds
 //! it (40 MHz, 64-word chunks) 1 920 in normal mode and 3 690 in super mode, once
-//! a lock has settled: the young lock's fit ([`phase`], its first
-//! [`timing::YOUNG`] frames) costs roughly 1 200 more per frame (an estimate, not
-//! benched), and for ~70 frames after it the rate settles from the fit's
+//! a lock has settled: the young lock ([`phase`], its first [`timing::YOUNG`]
+//! frames) costs 6 130 in super mode as the firmware feeds it (bench row "young
+//! lock", frames 4..36; 8 530 before `phase::mid_pairs` was made a register-only
+//! loop of ~28 instructions an edge): ~1 700 measuring the 61 mid-pair edges,
+//! ~320 the fit's 64-bit divisions, ~430 the frame step's and `Timing::advance`'s
+//! fit bookkeeping; and for ~70 frames after it the rate settles from the fit's
 //! estimate, dropping the gather table at every step (~370 more per frame,
 //! measured over frames 36..68 of a lock). Before the young fit and centred confirmation 1 930 / 1 940 /
 //! 2 970 / 3 560 (firmware 1 900 / 3 660).

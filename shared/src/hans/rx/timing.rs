@@ -16,8 +16,9 @@
 //! mid-pair edges of every frame that verified** ([`Timing::refine`]): after two
 //! or three verified frames phase and rate are known to a few hundredths of a
 //! sample. Then the alpha-beta filter takes over at its settled gains, which keep
-//! the precision at about 0.1 sample (no more edges are measured: 61 edges are an
-//! estimated ~1 200 instructions a frame, which only a young lock pays).
+//! the precision at about 0.1 sample (no more edges are measured: on the M7 the 61
+//! edges cost ~1 700 instructions a frame and the fit's 64-bit divisions ~320,
+//! which only a young lock pays; `cargo xtask profile "young lock"`).
 
 use super::phase::{Correction, Fit, Points};
 use super::ring::{diff, FRAC};
