@@ -70,7 +70,7 @@ pub const WORKLOADS: &[Workload] = &[
         run: |w| rx(w, FW_FS_HZ, Mode::Super, FW_CHUNK),
     },
     Workload {
-        name: "hans rx: firmware, super, young lock (frames 4..36 of a lock)",
+        name: "hans rx: firmware, super, young lock (frames 4..36)",
         frames: MEASURED as u32,
         run: |w| rx_from(w, FW_FS_HZ, Mode::Super, FW_CHUNK, YOUNG_FROM),
     },
