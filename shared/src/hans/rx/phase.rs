@@ -430,25 +430,12 @@ mod tests {
     }
 
     proptest! {
+        /// Any ratio, half of the cases within the line's 2.85..4.2 samples a bit.
         #[test]
         fn same_points_as_reference_on_any_input(
             words in prop::collection::vec(any::<u16>(), 64),
             start in any::<u32>(),
-            ratio in any::<i32>(),
-            pattern in any::<u128>(),
-        ) {
-            let ring = ring_with(&words);
-            prop_assert_eq!(
-                mid_pairs(&ring, start, ratio, pattern),
-                mid_pairs_reference(&ring, start, ratio, pattern)
-            );
-        }
-
-        #[test]
-        fn same_points_as_reference_at_line_ratios(
-            words in prop::collection::vec(any::<u16>(), 64),
-            start in any::<u32>(),
-            ratio in q(2.85)..=q(4.2),
+            ratio in prop_oneof![any::<i32>(), q(2.85)..=q(4.2)],
             pattern in any::<u128>(),
         ) {
             let ring = ring_with(&words);
