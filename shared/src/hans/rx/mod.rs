@@ -42,8 +42,8 @@
 //!    pair has one) of each frame its reference channel verified ([`phase`]): a
 //!    start edge per frame left a
 //!    young lock's phase ~0.35 sample off at ±25 % jitter, the pairs make it a few
-//!    hundredths; a young lock is dropped after six failures in a row, not
-//!    three ([`timing::Timing::relock_after`]);
+//!    hundredths; a lock that has not settled yet ([`timing::SETTLED`] start
+//!    edges) is dropped after six failures in a row, not three ([`timing::Timing::relock_after`]);
 //!    each channel's delay follows its own deviation from that consensus (averaged,
 //!    steps clamped to a sample). A lock publishes nothing until it has measured
 //!    [`timing::SETTLED`] start edges (its first gains are large: a rate measured

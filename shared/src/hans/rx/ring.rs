@@ -107,9 +107,7 @@ impl Ring {
         let mut src = src;
         if at & 1 == 1 {
             if let Some((&w, rest)) = src.split_first() {
-                if let Some(slot) = self.slot_mut(at >> 1) {
-                    *slot = *slot & 0xFFFF_0000 | u32::from(w);
-                }
+                self.set_later(at >> 1, w);
                 src = rest;
                 at = at.wrapping_add(1);
             }
@@ -122,8 +120,24 @@ impl Ring {
             }
             j = j.wrapping_add(1);
         }
-        if let (Some(&w), Some(slot)) = (rest.first(), self.slot_mut(j)) {
+        if let Some(&w) = rest.first() {
+            self.set_earlier(j, w);
+        }
+    }
+
+    /// Stores `w` as the earlier word (the high half) of window `j`.
+    #[inline(always)]
+    fn set_earlier(&mut self, j: u32, w: u16) {
+        if let Some(slot) = self.slot_mut(j) {
             *slot = *slot & 0xFFFF | u32::from(w) << 16;
+        }
+    }
+
+    /// Stores `w` as the later word (the low half) of window `j`.
+    #[inline(always)]
+    fn set_later(&mut self, j: u32, w: u16) {
+        if let Some(slot) = self.slot_mut(j) {
+            *slot = *slot & 0xFFFF_0000 | u32::from(w);
         }
     }
 
@@ -165,8 +179,8 @@ impl Ring {
         let mut src = src;
         if at & 1 == 1 {
             for (ring, s) in rings.iter_mut().zip(src.iter_mut()) {
-                if let (Some((&w, rest)), Some(slot)) = (s.split_first(), ring.slot_mut(at >> 1)) {
-                    *slot = *slot & 0xFFFF_0000 | u32::from(w);
+                if let Some((&w, rest)) = s.split_first() {
+                    ring.set_later(at >> 1, w);
                     *s = rest;
                 }
             }
@@ -189,10 +203,9 @@ impl Ring {
             }
             j = j.wrapping_add(1);
         }
-        let [ra, rb, rc, rd, re] = rings;
-        for (ring, rest) in [(ra, a.1), (rb, b.1), (rc, c.1), (rd, d.1), (re, e.1)] {
-            if let (Some(&w), Some(slot)) = (rest.first(), ring.slot_mut(j)) {
-                *slot = *slot & 0xFFFF | u32::from(w) << 16;
+        for (ring, rest) in rings.iter_mut().zip([a.1, b.1, c.1, d.1, e.1]) {
+            if let Some(&w) = rest.first() {
+                ring.set_earlier(j, w);
             }
         }
     }

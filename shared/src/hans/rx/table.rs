@@ -98,7 +98,7 @@ static EMPTY: Pair = Pair {
 /// Entries for every phase slot at one rate.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub struct Table {
-    /// Always [`SLOTS_MASK`].
+    /// Always `SLOTS_MASK`.
     pub slots: u32,
     /// The rate the entries are built for (Q16 samples per bit).
     pub(super) ratio: i32,

@@ -139,7 +139,7 @@ impl Timing {
             .wrapping_add((err * 2 * (2 * k - 1) / (k * (k + 1))) as u32);
         let period = self.period.saturating_add(err * 6 / (k * (k + 1)));
         self.set(start, period);
-        (self.bounds.0..=self.bounds.1).contains(&period)
+        self.period_ok(period)
     }
 
     /// Moves the current frame's start edge and the period by `c` from `start`.
@@ -147,6 +147,12 @@ impl Timing {
     fn apply(&mut self, start: u32, c: Correction) -> bool {
         let period = self.period.saturating_add(c.period);
         self.set(start.wrapping_add(c.start as u32), period);
+        self.period_ok(period)
+    }
+
+    /// True when `period` lies within the bounds the timing accepts.
+    #[inline(always)]
+    fn period_ok(&self, period: i32) -> bool {
         (self.bounds.0..=self.bounds.1).contains(&period)
     }
 
@@ -166,7 +172,7 @@ impl Timing {
         let period = self.period.saturating_add(c.period);
         if self.young()
             && c.start.unsigned_abs() < (self.ratio / 2).unsigned_abs()
-            && (self.bounds.0..=self.bounds.1).contains(&period)
+            && self.period_ok(period)
         {
             self.fit = fit;
             self.apply(self.start, c);
