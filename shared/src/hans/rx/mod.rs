@@ -578,70 +578,68 @@ impl HansRx {
         let ratio = self.timing.ratio;
         let start = self.timing.start;
         let half_bit = (ratio / 2) as u32 + HALF;
-        // Channels not aligned yet try at this frame's start edge.
+        // Channels not aligned yet try at this frame's start edge. A settled lock
+        // has every used channel aligned: then one pass over the delays is all.
+        let used = self.used;
+        let mut delays = [0i32; CHANNELS];
         let mut aligned = 0u8;
-        for n in bits(self.used) {
-            let (Some(ch), Some(ring)) = (self.channels.get_mut(n), self.rings.get(n)) else {
-                continue;
-            };
-            if ch.delay.is_none() {
-                if let Some(e) = Channel::edge(ring, start, ratio) {
-                    ch.align(diff(e, start));
-                }
-            }
-            if ch.delay.is_some() {
+        for (n, (ch, d)) in self.channels.iter().zip(delays.iter_mut()).enumerate() {
+            if let Some(delay) = ch.delay {
+                *d = delay;
                 aligned |= 1 << n;
             }
+        }
+        aligned &= used;
+        if aligned != used {
+            aligned = self.align(used & !aligned, aligned, &mut delays);
         }
         if aligned == 0 {
             self.lose(sink);
             return;
         }
         // Counted every period a channel stays dead: one test in the healthy case.
-        if aligned != self.used {
-            self.missing(self.used & !aligned, sink);
+        if aligned != used {
+            self.missing(used & !aligned, sink);
         }
         if aligned & (1 << self.reference) == 0 {
             self.reference = aligned.trailing_zeros() as usize;
         }
         let reference = self.reference;
-        let delay = |n: usize| self.channels.get(n).and_then(|c| c.delay).unwrap_or(0);
+        let delay = |n: usize| delays.get(n).copied().unwrap_or(0);
         let ref_delay = delay(reference);
         self.table.follow(ratio);
         let Some(ring) = self.rings.get(reference) else {
             return;
         };
         let first = start.wrapping_add(ref_delay as u32).wrapping_add(half_bit);
-        let ref_pattern = if aligned == 1 << reference {
+        let others = aligned & !(1 << reference);
+        let ref_pattern = if others == 0 {
             ring.gather::<false>(&mut self.table, first, ratio as u32, &mut self.centres)
         } else {
             ring.gather::<true>(&mut self.table, first, ratio as u32, &mut self.centres)
         };
-        let mut patterns = [None; CHANNELS];
+        // Every other channel against the reference's centres, shifted by the whole
+        // samples between the two delays: a match means this channel's pattern is
+        // the reference's.
         let mut same = 1u8 << reference;
-        for n in bits(aligned) {
-            let (Some(slot), Some(ring)) = (patterns.get_mut(n), self.rings.get(n)) else {
-                continue;
-            };
-            if n == reference {
-                *slot = Some(ref_pattern);
-                continue;
-            }
-            let d = delay(n);
-            // Same centres shifted by the whole samples between the two channels: a
-            // match means this channel's pattern is the reference's.
-            let rel = (d - ref_delay + HALF as i32) >> FRAC;
-            *slot = Some(if ring.agrees(&self.centres, rel) {
+        for n in bits(others) {
+            let rel = (delay(n) - ref_delay + HALF as i32) >> FRAC;
+            if self.rings.get(n).is_some_and(|r| r.agrees(&self.centres, rel)) {
                 same |= 1 << n;
-                ref_pattern
-            } else {
-                ring.gather::<false>(
+            }
+        }
+        // The ones that differ are gathered in full at their own delay (only their
+        // entries of `patterns` are read).
+        let mut patterns = [0u128; CHANNELS];
+        for n in bits(aligned & !same) {
+            if let (Some(slot), Some(ring)) = (patterns.get_mut(n), self.rings.get(n)) {
+                *slot = ring.gather::<false>(
                     &mut self.table,
-                    start.wrapping_add(d as u32).wrapping_add(half_bit),
+                    start.wrapping_add(delay(n) as u32).wrapping_add(half_bit),
                     ratio as u32,
                     &mut Centres::default(),
-                )
-            });
+                );
+            }
         }
         // The channels that matched the reference hold one pattern, read right if
         // any of them confirms the timing at its own delay (the reference first; a
@@ -680,6 +678,30 @@ impl HansRx {
         self.pending = Some((verified, same));
     }
 
+    /// Aligns the channels of `mask` (used, not aligned) at this frame's start edge
+    /// if they have one there; returns `aligned` with those that did, their delays
+    /// in `delays`.
+    #[inline(never)]
+    fn align(&mut self, mask: u8, aligned: u8, delays: &mut [i32; CHANNELS]) -> u8 {
+        let (start, ratio) = (self.timing.start, self.timing.ratio);
+        let mut aligned = aligned;
+        for n in bits(mask) {
+            let (Some(ch), Some(ring), Some(d)) =
+                (self.channels.get_mut(n), self.rings.get(n), delays.get_mut(n))
+            else {
+                continue;
+            };
+            if let Some(e) = Channel::edge(ring, start, ratio) {
+                ch.align(diff(e, start));
+            }
+            if let Some(delay) = ch.delay {
+                *d = delay;
+                aligned |= 1 << n;
+            }
+        }
+        aligned
+    }
+
     /// True when channel `n`'s start edges of this frame (at `start` plus its
     /// `delay`) and of the next one (a frame later by the bit timing the pattern
     /// was read with) both lie within [`confirm_window`] of where that timing puts
@@ -710,10 +732,11 @@ impl HansRx {
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that
-    /// verified.
+    /// verified. `present`: the channels with a pattern; those of `same` hold
+    /// `ref_pattern`, the others theirs in `patterns`.
     fn evaluate(
         &mut self,
-        patterns: &[Option<u128>; CHANNELS],
+        patterns: &[u128; CHANNELS],
         present: u8,
         same: u8,
         confirmed: u8,
@@ -741,7 +764,7 @@ impl HansRx {
         let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
         let mut ok = 0u8;
         for n in bits(present) {
-            let (Some(Some(p)), Some(stats), Some(ch)) = (
+            let (Some(p), Some(stats), Some(ch)) = (
                 patterns.get(n),
                 self.stats.get_mut(n),
                 self.channels.get_mut(n),
@@ -785,12 +808,12 @@ impl HansRx {
         }
         // An unconfirmed channel counts as failed: it votes zeros, as a dead line.
         let all = same & confirmed == self.used;
-        let get = |c: u8| {
-            usize::from(c)
-                .checked_sub(1)
-                .filter(|&i| confirmed & (1 << i) != 0)
-                .and_then(|i| patterns.get(i).copied().flatten())
-                .unwrap_or(0)
+        let get = |c: u8| match usize::from(c).checked_sub(1) {
+            Some(i) if confirmed & present & same & (1 << i) != 0 => ref_pattern,
+            Some(i) if confirmed & present & (1 << i) != 0 => {
+                patterns.get(i).copied().unwrap_or(0)
+            }
+            _ => 0,
         };
         match self.mode {
             Mode::Normal { channel } => {
