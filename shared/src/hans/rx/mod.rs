@@ -327,6 +327,8 @@ pub struct HansRx {
     /// controller never connected: the bridge's input timeout covers that), and
     /// every healthy channel would count the acquisition's first periods.
     seen: bool,
+    /// [`HansRx::latest`], kept up to date.
+    late: i32,
 }
 
 impl HansRx {
@@ -373,6 +375,11 @@ impl HansRx {
             frames: 0,
             idle: 0,
             seen: false,
+            late: 0,
+        })
+        .map(|mut rx| {
+            rx.late = rx.latest();
+            rx
         })
     }
 
@@ -510,13 +517,9 @@ impl HansRx {
     /// which confirms the frame's timing before it is published.
     fn need(&self) -> u32 {
         let t = &self.timing;
-        let mut late = 0;
-        for (n, c) in self.channels.iter().enumerate() {
-            // A channel aligning at this frame may be up to the delay limit late.
-            if self.used & (1 << n) != 0 {
-                late = late.max(c.delay.unwrap_or(channel::DELAY_MAX));
-            }
-        }
+        #[cfg(test)]
+        assert_eq!(self.late, self.latest(), "`late` missed a delay change");
+        let late = self.late;
         // The frame to decode next starts at the current edge, or, once that frame
         // is done, at the predicted next one (whose edge window lies before its
         // last centre).
@@ -534,6 +537,21 @@ impl HansRx {
         // Two samples of slack: a table-gathered centre (or a shifted compare) may
         // fall one sample after the exact position.
         (last.wrapping_add(late as u32).wrapping_add(2 << FRAC) >> 20).wrapping_add(1)
+    }
+
+    /// The latest delay of a used channel; one not aligned counts as
+    /// [`channel::DELAY_MAX`] (it may align at this frame that late). Kept in
+    /// `late` by every change of a delay (six places: the hunt's lock, `align`,
+    /// `evaluate`, `edges`, the tracking in `next`, `lose`), so that
+    /// [`HansRx::need`], twice a frame, does not walk the channels.
+    fn latest(&self) -> i32 {
+        let mut late = 0;
+        for (n, c) in self.channels.iter().enumerate() {
+            if self.used & (1 << n) != 0 {
+                late = late.max(c.delay.unwrap_or(channel::DELAY_MAX));
+            }
+        }
+        late
     }
 
     /// Hunts in the word just stored, on every used channel; the first channel to
@@ -568,6 +586,7 @@ impl HansRx {
             if let Some(ch) = self.channels.get_mut(n) {
                 ch.align(0);
             }
+            self.late = self.latest();
             self.need = self.need();
         }
     }
@@ -630,15 +649,18 @@ impl HansRx {
         }
         // The ones that differ are gathered in full at their own delay (only their
         // entries of `patterns` are read).
+        let differ = aligned & !same;
         let mut patterns = [0u128; CHANNELS];
-        for n in bits(aligned & !same) {
-            if let (Some(slot), Some(ring)) = (patterns.get_mut(n), self.rings.get(n)) {
-                *slot = ring.gather::<false>(
-                    &mut self.table,
-                    start.wrapping_add(delay(n) as u32).wrapping_add(half_bit),
-                    ratio as u32,
-                    &mut Centres::default(),
-                );
+        if differ != 0 {
+            for n in bits(differ) {
+                if let (Some(slot), Some(ring)) = (patterns.get_mut(n), self.rings.get(n)) {
+                    *slot = ring.gather::<false>(
+                        &mut self.table,
+                        start.wrapping_add(delay(n) as u32).wrapping_add(half_bit),
+                        ratio as u32,
+                        &mut Centres::default(),
+                    );
+                }
             }
         }
         // The channels that matched the reference hold one pattern, read right if
@@ -699,6 +721,7 @@ impl HansRx {
                 aligned |= 1 << n;
             }
         }
+        self.late = self.latest();
         aligned
     }
 
@@ -763,6 +786,7 @@ impl HansRx {
         }
         let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
         let mut ok = 0u8;
+        let mut unaligned = false;
         for n in bits(present) {
             let (Some(p), Some(stats), Some(ch)) = (
                 patterns.get(n),
@@ -797,6 +821,7 @@ impl HansRx {
                     // A channel that keeps failing is taken to be misaligned (a
                     // delay measured on a glitch): it aligns again from scratch.
                     if ch.failures >= self.timing.relock_after() && ch.unalign() {
+                        unaligned = true;
                         stats.resyncs = stats.resyncs.wrapping_add(1);
                         sink(RxEvent::Fault {
                             channel: Some(number(n)),
@@ -805,6 +830,9 @@ impl HansRx {
                     }
                 }
             }
+        }
+        if unaligned {
+            self.late = self.latest();
         }
         // An unconfirmed channel counts as failed: it votes zeros, as a dead line.
         let all = same & confirmed == self.used;
@@ -889,17 +917,48 @@ impl HansRx {
         // untrusted.
         let mut errs = [0i32; CHANNELS];
         self.frames = self.frames.wrapping_add(1);
-        let settled = bits(same & !(1 << self.reference))
-            .filter(|&n| self.channels.get(n).is_some_and(Channel::settled))
-            .fold(0u8, |m, n| m | 1 << n);
+        let reference = 1u8 << self.reference;
         let skip = if self.frames.is_multiple_of(REMEASURE) {
             0
         } else {
-            settled
+            let mut settled = 0u8;
+            for (n, ch) in self.channels.iter().enumerate() {
+                if ch.settled() {
+                    settled |= 1 << n;
+                }
+            }
+            settled & same & !reference
         };
         let mut found = self.edges(self.used & !skip, pred, &mut errs, sink);
-        if found & verified & (1 << self.reference) == 0 {
+        if found & verified & reference == 0 {
             found |= self.edges(skip, pred, &mut errs, sink);
+        }
+        // The steady state: only the reference was measured, and it verified. It
+        // alone is trusted, so the consensus is its own edge and its deviation from
+        // it zero (what the general path below concludes too).
+        if found == reference && verified & reference != 0 {
+            let err = errs.get(self.reference).copied().unwrap_or(0);
+            if !self.timing.advance(err) {
+                self.lose(sink);
+                return;
+            }
+            if let (Some(ch), Some(stats)) = (
+                self.channels.get_mut(self.reference),
+                self.stats.get_mut(self.reference),
+            ) {
+                if let Some(d) = ch.delay {
+                    if !ch.track(d) {
+                        stats.resyncs = stats.resyncs.wrapping_add(1);
+                        sink(RxEvent::Fault {
+                            channel: Some(number(self.reference)),
+                            kind: FaultKind::Resync,
+                        });
+                        self.late = self.latest();
+                    }
+                }
+            }
+            self.dry = 0;
+            return;
         }
         // Channels that just verified are trusted; the others only when none did.
         // The upper median shrugs off a glitch on a minority of channels (a glitch
@@ -947,6 +1006,7 @@ impl HansRx {
                 });
             }
         }
+        self.late = self.latest();
         // Keep the reference while it verifies and has its edge; otherwise the first
         // channel that does, or at least has an edge.
         if trusted & (1 << self.reference) == 0 {
@@ -976,6 +1036,7 @@ impl HansRx {
     ) -> u8 {
         let ratio = self.timing.ratio;
         let mut found = 0u8;
+        let mut lost = false;
         for n in bits(mask) {
             let (Some(ch), Some(ring), Some(stats), Some(err)) = (
                 self.channels.get_mut(n),
@@ -993,6 +1054,7 @@ impl HansRx {
                 }
                 None => {
                     ch.unalign();
+                    lost = true;
                     stats.resyncs = stats.resyncs.wrapping_add(1);
                     sink(RxEvent::Fault {
                         channel: Some(number(n)),
@@ -1000,6 +1062,9 @@ impl HansRx {
                     });
                 }
             }
+        }
+        if lost {
+            self.late = self.latest();
         }
         found
     }
@@ -1058,6 +1123,7 @@ impl HansRx {
                 });
             }
         }
+        self.late = self.latest();
         self.missing(self.used, sink);
     }
 }
