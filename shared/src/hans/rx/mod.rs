@@ -329,6 +329,10 @@ pub struct HansRx {
     seen: bool,
     /// [`HansRx::latest`], kept up to date.
     late: i32,
+    /// Test builds only: the steady-state shortcuts off, so that a test can compare
+    /// them with the general path ([`HansRx::shortcuts`]).
+    #[cfg(test)]
+    general: bool,
 }
 
 impl HansRx {
@@ -376,6 +380,8 @@ impl HansRx {
             idle: 0,
             seen: false,
             late: 0,
+            #[cfg(test)]
+            general: false,
         })
         .map(|mut rx| {
             rx.late = rx.latest();
@@ -539,6 +545,18 @@ impl HansRx {
         (last.wrapping_add(late as u32).wrapping_add(2 << FRAC) >> 20).wrapping_add(1)
     }
 
+    /// True unless a test turned the steady-state shortcuts off: `evaluate`'s for a
+    /// frame every channel verified, `next`'s for a lone measured reference. Each
+    /// concludes what the general path does; `tests::steady` checks that on
+    /// random lines.
+    #[inline(always)]
+    fn shortcuts(&self) -> bool {
+        #[cfg(test)]
+        return !self.general;
+        #[cfg(not(test))]
+        true
+    }
+
     /// The latest delay of a used channel; one not aligned counts as
     /// [`channel::DELAY_MAX`] (it may align at this frame that late). Kept in
     /// `late` by every change of a delay (six places: the hunt's lock, `align`,
@@ -643,7 +661,11 @@ impl HansRx {
         let mut same = 1u8 << reference;
         for n in bits(others) {
             let rel = (delay(n) - ref_delay + HALF as i32) >> FRAC;
-            if self.rings.get(n).is_some_and(|r| r.agrees(&self.centres, rel)) {
+            if self
+                .rings
+                .get(n)
+                .is_some_and(|r| r.agrees(&self.centres, rel))
+            {
                 same |= 1 << n;
             }
         }
@@ -708,9 +730,11 @@ impl HansRx {
         let (start, ratio) = (self.timing.start, self.timing.ratio);
         let mut aligned = aligned;
         for n in bits(mask) {
-            let (Some(ch), Some(ring), Some(d)) =
-                (self.channels.get_mut(n), self.rings.get(n), delays.get_mut(n))
-            else {
+            let (Some(ch), Some(ring), Some(d)) = (
+                self.channels.get_mut(n),
+                self.rings.get(n),
+                delays.get_mut(n),
+            ) else {
                 continue;
             };
             if let Some(e) = Channel::edge(ring, start, ratio) {
@@ -770,7 +794,7 @@ impl HansRx {
         // The steady state: every used channel holds the reference's pattern, its
         // timing confirmed, and it passed. Every channel verified that one frame, so
         // every mode publishes it (what the general path below concludes too).
-        if same & confirmed == self.used && present == self.used {
+        if same & confirmed == self.used && present == self.used && self.shortcuts() {
             if let Ok(f) = ref_decoded {
                 for n in bits(present) {
                     if let (Some(stats), Some(ch)) =
@@ -835,12 +859,10 @@ impl HansRx {
             self.late = self.latest();
         }
         // An unconfirmed channel counts as failed: it votes zeros, as a dead line.
-        let all = same & confirmed == self.used;
+        let all = same & confirmed == self.used && self.shortcuts();
         let get = |c: u8| match usize::from(c).checked_sub(1) {
             Some(i) if confirmed & present & same & (1 << i) != 0 => ref_pattern,
-            Some(i) if confirmed & present & (1 << i) != 0 => {
-                patterns.get(i).copied().unwrap_or(0)
-            }
+            Some(i) if confirmed & present & (1 << i) != 0 => patterns.get(i).copied().unwrap_or(0),
             _ => 0,
         };
         match self.mode {
@@ -936,7 +958,7 @@ impl HansRx {
         // The steady state: only the reference was measured, and it verified. It
         // alone is trusted, so the consensus is its own edge and its deviation from
         // it zero (what the general path below concludes too).
-        if found == reference && verified & reference != 0 {
+        if found == reference && verified & reference != 0 && self.shortcuts() {
             let err = errs.get(self.reference).copied().unwrap_or(0);
             if !self.timing.advance(err) {
                 self.lose(sink);
