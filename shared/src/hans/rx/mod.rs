@@ -670,12 +670,16 @@ impl HansRx {
             }
         }
         // The ones that differ are gathered in full at their own delay (only their
-        // entries of `patterns` are read).
+        // entries of `patterns` are read; none in the steady state, which then
+        // spares clearing them).
         let differ = aligned & !same;
-        let mut patterns = [0u128; CHANNELS];
-        if differ != 0 {
+        let gathered;
+        let patterns = if differ == 0 {
+            &[0; CHANNELS]
+        } else {
+            let mut p = [0u128; CHANNELS];
             for n in bits(differ) {
-                if let (Some(slot), Some(ring)) = (patterns.get_mut(n), self.rings.get(n)) {
+                if let (Some(slot), Some(ring)) = (p.get_mut(n), self.rings.get(n)) {
                     *slot = ring.gather::<false>(
                         &mut self.table,
                         start.wrapping_add(delay(n) as u32).wrapping_add(half_bit),
@@ -684,7 +688,9 @@ impl HansRx {
                     );
                 }
             }
-        }
+            gathered = p;
+            &gathered
+        };
         // The channels that matched the reference hold one pattern, read right if
         // any of them confirms the timing at its own delay (the reference first; a
         // noisy edge on one of them costs nothing); the others are confirmed on
@@ -708,7 +714,7 @@ impl HansRx {
                 sink(e);
             }
         };
-        let verified = self.evaluate(&patterns, aligned, same, confirmed, ref_pattern, &mut gated);
+        let verified = self.evaluate(patterns, aligned, same, confirmed, ref_pattern, &mut gated);
         // A young lock learns phase and rate from the verified reference's mid-pair
         // edges (`timing::YOUNG`).
         if let (true, Some(ring)) = (
