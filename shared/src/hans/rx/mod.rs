@@ -107,17 +107,19 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 1 880 instructions per frame for one channel at 3x (1 960 at 4x), 2 920
-//! for vote3 and 3 570 for vote5 / super (5 channels, 3x); as the firmware feeds
-//! it (40 MHz, 64-word chunks) 1 920 in normal mode and 3 690 in super mode, once
+//! About 1 780 instructions per frame for one channel at 3x (1 870 at 4x), 2 690
+//! for vote3 and 3 170 for vote5 / super (5 channels, 3x); as the firmware feeds
+//! it (40 MHz, 64-word chunks) 1 830 in normal mode and 3 290 in super mode, once
 //! a lock has settled: the young lock ([`phase`], its first [`timing::YOUNG`]
-//! frames) costs 6 130 in super mode as the firmware feeds it (bench row "young
+//! frames) costs 5 780 in super mode as the firmware feeds it (bench row "young
 //! lock", frames 4..36; 8 530 before `phase::mid_pairs` was made a register-only
 //! loop of ~28 instructions an edge): ~1 700 measuring the 61 mid-pair edges,
 //! ~320 the fit's 64-bit divisions, ~430 the frame step's and `Timing::advance`'s
 //! fit bookkeeping; and for ~70 frames after it the rate settles from the fit's
 //! estimate, dropping the gather table at every step (~370 more per frame,
-//! measured over frames 36..68 of a lock). Before the young fit and centred confirmation 1 930 / 1 940 /
+//! measured over frames 36..68 of a lock). Before the steady-state shortcuts
+//! (below) 1 870 / 1 960 / 2 920 / 3 570 (firmware 1 920 / 3 690, young lock
+//! 6 130). Before the young fit and centred confirmation 1 930 / 1 940 /
 //! 2 970 / 3 560 (firmware 1 900 / 3 660).
 //! Before the five-ring store took the chunks and range itself 1 940 / 1 945 /
 //! 2 980 / 3 580 (firmware 1 910 / 3 700), before the five-ring store 1 970 /
@@ -126,13 +128,26 @@
 //! design. Per frame at 3x that is roughly: gathering the reference ~760 (about 44
 //! per 32-sample window, 88 per two-window step; plus ~110 in the bench's window
 //! for table entries met for the first time, which a running line stops paying
-//! once its phases have all been seen), its decode 125, the start-edge
+//! once its phases have all been seen; ~950 at 40 MHz, where the step loop
+//! spills), its decode 125, the start-edge
 //! confirmation ~80, the timing filter ~70, copying the rings (one ring: ~5 per
 //! word with the per-call overhead, ~130 per frame; all five in vote5 / super: one
 //! pass, ~2.5 per word and channel plus ~85 per call, ~430 per frame for all
-//! five), per other channel ~12 per window for the centre compare (~200), and ~600
-//! of per-frame bookkeeping (`frame`, `next`, `evaluate`, `need`) of which ~120 per
-//! extra channel. **Still over the 1 200-instruction budget of the worst path**;
+//! five), per other channel ~12 per window for the centre compare (~200), and
+//! ~520 of per-frame bookkeeping (`push_at`, `frame`, `next`, `edges`,
+//! `evaluate`, `need`) for one channel, ~750 for five (~1 190 before the
+//! shortcuts). The **steady-state shortcuts**: `frame` reads the delays in one
+//! pass when every used channel is aligned (aligning the others out of line),
+//! compares the other channels before gathering only those that differ, and
+//! clears no per-channel patterns when none does; `evaluate` publishes a frame
+//! every channel verified without the per-channel checks (as before); `next` takes a lone
+//! measured reference that verified as the consensus (no median, its tracking
+//! step is zero); `need` reads the latest delay kept in a field instead of
+//! walking the channels twice a frame. Each concludes what the general path
+//! does: a test build can turn them off, and `tests::steady` checks on random
+//! lines (jitter, skew, glitches, dead and noisy channels, gaps, every mode and
+//! chunking) that events, positions and the whole receiver state are the same
+//! after every push. **Still over the 1 200-instruction budget of the worst path**;
 //! what is left is listed in the README ("Known limits").
 
 pub mod channel;
