@@ -136,6 +136,7 @@
 //! what is left is listed in the README ("Known limits").
 
 pub mod channel;
+pub mod gap;
 pub mod modes;
 pub mod phase;
 pub mod ring;
@@ -327,6 +328,8 @@ pub struct HansRx {
     /// controller never connected: the bridge's input timeout covers that), and
     /// every healthy channel would count the acquisition's first periods.
     seen: bool,
+    /// Skipped input ([`HansRx::skip`]).
+    gaps: gap::Gaps,
 }
 
 impl HansRx {
@@ -373,6 +376,7 @@ impl HansRx {
             frames: 0,
             idle: 0,
             seen: false,
+            gaps: gap::Gaps::default(),
         })
     }
 

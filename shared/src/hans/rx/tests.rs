@@ -525,5 +525,6 @@ proptest! {
 }
 
 mod dead;
+mod gap;
 mod periods;
 mod ring;
