@@ -454,7 +454,12 @@ fn limits_over_many_locks() {
 /// Feeds `words` as the firmware does (`tasks/hans_in.rs`): 512-word halves in
 /// 64-word chunks, with the halves `from..from + halves` missing (dropped by the
 /// load governor): `HansRx::skip` tells the receiver. Returns the events.
-fn receive_with_gap(words: &[Vec<u16>], rx: &mut HansRx, from: usize, halves: usize) -> Vec<RxEvent> {
+fn receive_with_gap(
+    words: &[Vec<u16>],
+    rx: &mut HansRx,
+    from: usize,
+    halves: usize,
+) -> Vec<RxEvent> {
     const HALF: usize = 512;
     let mut events = Vec::new();
     let len = words[0].len() / HALF * HALF;
@@ -525,7 +530,10 @@ fn dropped_halves_are_coasted_across() {
                     if first > after + 2 || lost > 1 {
                         // ...or the coast drifted too far and the lock was lost: then
                         // it relocks as a fresh receiver would.
-                        assert!(lost <= LOCK_FRAMES, "{at}: {lost} frames lost, resumed at {first}");
+                        assert!(
+                            lost <= LOCK_FRAMES,
+                            "{at}: {lost} frames lost, resumed at {first}"
+                        );
                         assert!(!matches!(mode, Mode::Normal { .. }), "{at}: relocked");
                         relocked += 1;
                         continue;
@@ -534,8 +542,14 @@ fn dropped_halves_are_coasted_across() {
                     let mut fresh = HansRx::new(fs.round() as u32, mode).unwrap();
                     let later: Vec<Vec<u16>> = words.iter().map(|w| w[g1..].to_vec()).collect();
                     let again = published(&receive_with_gap(&later, &mut fresh, usize::MAX, 0));
-                    let fresh_first = frames.iter().position(|s| Some(s) == again.first()).unwrap();
-                    assert!(fresh_first >= first + 5, "{at}: fresh at {fresh_first}, coasted {first}");
+                    let fresh_first = frames
+                        .iter()
+                        .position(|s| Some(s) == again.first())
+                        .unwrap();
+                    assert!(
+                        fresh_first >= first + 5,
+                        "{at}: fresh at {fresh_first}, coasted {first}"
+                    );
                     coasted += (first + 1).saturating_sub(after);
                     fresh_total += (fresh_first + 1).saturating_sub(after);
                 }
@@ -552,6 +566,9 @@ fn dropped_halves_are_coasted_across() {
     // frame off at most). Normal mode never loses the lock; the modes that time
     // on several channels do at 37.5 MHz with a 1 % offset (their rate is worse
     // than one channel's, README "Known limits"), and then relock.
-    assert!(coasted <= 2 * kept, "{coasted} frames late over {kept} runs");
+    assert!(
+        coasted <= 2 * kept,
+        "{coasted} frames late over {kept} runs"
+    );
     assert!(relocked * 6 <= runs, "{relocked} of {runs} runs relocked");
 }

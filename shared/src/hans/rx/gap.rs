@@ -80,6 +80,7 @@
 
 use super::channel::DELAY_MAX;
 use super::ring::{diff, FRAC, RING_WORDS};
+use super::timing::{RECENTRE, YOUNG};
 use super::{HansRx, RxEvent};
 
 /// Most frame periods a settled lock predicts without a measured start edge
@@ -96,10 +97,10 @@ const ENDS: u32 = 3;
 pub struct Gaps {
     /// Frame periods not decoded because their input was skipped (wrapping).
     skipped: u32,
-    /// The start edge the last coast ended on, and the frames predicted without a
-    /// measured edge up to it: a further gap before that frame's successor has
-    /// been measured adds to them.
-    coast: Option<(u32, u32)>,
+    /// The frames the last coast predicted without a measured edge. They still
+    /// count while its first frame's successor has not been measured: the timing
+    /// is then at the first of its [`super::timing::RECENTRE`] young frames.
+    coasted: u8,
 }
 
 impl HansRx {
@@ -116,7 +117,6 @@ impl HansRx {
         }
         let gap = u64::from(words) << (FRAC + 4);
         if self.locked && !self.coast(gap) {
-            self.gaps.coast = None;
             self.lose(sink);
         }
         self.invalidate(words);
@@ -167,9 +167,12 @@ impl HansRx {
         }
         // Frames predicted without a measured edge so far: those of a coast whose
         // end has not been measured past, and a decoded frame's successor.
-        let mut before = match self.gaps.coast {
-            Some((at, n)) if at == t.start => u64::from(n),
-            _ => 0,
+        // (A young lock that reached that frame count on its own reads the last
+        // coast's count too: only ever more cautious.)
+        let mut before = if t.fits == YOUNG - RECENTRE {
+            u64::from(self.gaps.coasted)
+        } else {
+            0
         };
         let first = if self.pending.is_some() {
             before += 1;
@@ -201,7 +204,7 @@ impl HansRx {
         self.pending = None;
         // Both at most MAX_COAST here.
         self.gaps.skipped = self.gaps.skipped.wrapping_add(k as u32);
-        self.gaps.coast = Some((self.timing.start, frames as u32));
+        self.gaps.coasted = frames as u8;
         self.timing.recentre(frames as u32);
         self.need = self.need();
         true
