@@ -6,8 +6,10 @@
 //! # Why a lock may coast
 //! The sender's clock runs on through the gap, and a settled lock knows its frame
 //! period to about 2.5·10^-4 bit per frame (rms at ±25 % jitter, 1·10^-3 at worst,
-//! measured on 180 locks at 37.5 / 40 / 50 MHz and 0 / ±1 % offset; the steady-state
-//! variance of the alpha-beta filter at its settled gains gives the same), so the
+//! measured on 180 one-channel locks at 37.5 / 40 / 50 MHz and 0 / ±1 % offset; the
+//! steady-state variance of the alpha-beta filter at its settled gains gives the
+//! same; the modes that time on several channels do worse at 3x with an offset,
+//! see the README "What is left (issue 6)"), so the
 //! start edges it predicts across a gap of a few DMA halves (20 frames each) are off
 //! by a few hundredths of a bit more than they are anyway. A fresh receiver, by
 //! contrast, hunts for two start edges and runs the young fit ([`super::phase`],
