@@ -119,6 +119,7 @@ impl HansRx {
         }
         let gap = u64::from(words) << (FRAC + 4);
         if self.locked && !self.coast(gap) {
+            self.gaps.coasted = 0;
             self.lose(sink);
         }
         self.invalidate(words);
