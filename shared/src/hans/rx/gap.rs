@@ -39,7 +39,7 @@
 //!   hundredths of a bit and the rate by their lever arm across the gap. At the
 //!   filter's settled gains alone the drift would go at ~3 % a frame: a 4-half
 //!   gap at 37.5 MHz, +1 % offset and ±25 % jitter left the phase 0.13 bit off
-//!   for a dozen frames, until three failed confirmations in a row cost the lock.
+//!   for a dozen frames, until three failed frames in a row cost the lock.
 //!   Each such frame costs what a young lock's does (~2 400 instructions more in
 //!   super mode), twice per gap.
 //! - **The rings never hold stale samples for the gap.** The ring slots of the gap's
@@ -78,7 +78,13 @@
 //! predicted frame at worst: 128 frames keep the worst prediction error measured
 //! (0.22 bit) inside the 1/4, and the rms one at ~0.05. That is 5.9 DMA halves of
 //! 512 words at 37.5 MHz, 6.3 at 40 MHz, 7.8 at 50 MHz; a longer gap is a new
-//! acquisition ([`HansRx::max_gap_words`] for the caller's choice).
+//! acquisition ([`HansRx::max_gap_words`] for the caller's choice). The bound is
+//! about keeping the lock: reading every bit right at 3x and ±25 % jitter wants the
+//! phase within ~0.1 bit, so frames right after a long gap may fail their checks
+//! (counted, never published) until the re-centring has caught up; and the
+//! modes that time on several channels track a rate several times worse at 3x
+//! with an offset, where a coast over two or more halves often loses the lock and
+//! hunts again (README "What is left (issue 6)").
 
 use super::channel::DELAY_MAX;
 use super::ring::{diff, FRAC, RING_WORDS};
