@@ -200,7 +200,7 @@ impl Timing {
 
     /// After a coast that predicted `frames` periods without a measured start
     /// edge ([`super::gap`]): the fit becomes [`Fit::prior`] of the filter's
-    /// [`FIT_FRAMES`] start edges that far back, and the next [`RECENTRE`]
+    /// `FIT_FRAMES` (128) start edges that far back, and the next [`RECENTRE`]
     /// frames are young (mid-pair edges measured, then the filter takes over
     /// again at its settled gains).
     pub fn recentre(&mut self, frames: u32) {
