@@ -21,7 +21,9 @@
 //! load governor (`super::governor`) keeps it from starving thread mode when it
 //! cannot keep up: it pauses the decoder beyond its share of the core and drops
 //! halves that waited too long (counted; the bridge sees the gaps as faults and its
-//! input timeout decides).
+//! input timeout decides). The receiver coasts across such a gap (`HansRx::skip`):
+//! shedding a half does not cost a new acquisition (hunt, then the young lock's
+//! ~1.7x CPU for 32 frames, nothing published for the first 8).
 
 use embassy_futures::yield_now;
 use embassy_time::{Instant, Timer};
@@ -129,10 +131,14 @@ struct Decoder {
 /// HANS-100 controller decoder (decode executor, see the module docs): each half
 /// from [`HANS_INPUT`] the governor admits goes through `HansRx` in `mode`
 /// ([`CHUNK`] words at a time) and the events go to [`HANS_EVENTS`] in order. A half
-/// that does not continue the last decoded one (a new session, or halves lost on a
-/// full queue or dropped by the governor) starts a fresh receiver, reported as a
-/// `Dropped` fault on the framing line: the receiver's timing is only valid on a
-/// continuous stream.
+/// that does not continue the last decoded one is reported as a `Dropped` fault on
+/// the framing line. When halves of the same session are missing (lost on a full
+/// queue or dropped by the governor) the receiver is told how many words
+/// (`HansRx::skip`, the gap from `first_word`): the sender's clock ran on, so a
+/// settled lock coasts across and decodes again from the first frame after the
+/// gap, instead of paying a new hunt and young lock for the shed load. A new
+/// session (the channels restarted, their words no longer the same stream) or a
+/// gap beyond `HansRx::max_gap_words` starts a fresh receiver.
 #[embassy_executor::task]
 pub async fn hans_decode(mode: Mode) {
     let fresh = || HansRx::new(HANS_FS_HZ, mode);
@@ -156,6 +162,7 @@ pub async fn hans_decode(mode: Mode) {
         if !governor::admit(Class::Essential, raw.ready).await {
             continue;
         }
+        let mut busy = Busy::new();
         if dec.session != Some(raw.session) || raw.first_word != dec.next_word {
             if dec.session.is_some() {
                 let gap = LineEvent::Fault {
@@ -164,13 +171,28 @@ pub async fn hans_decode(mode: Mode) {
                 };
                 HANS_EVENTS.send((raw.first_word, gap)).await;
             }
-            if let Ok(rx) = fresh() {
+            // Words per channel missing since the last decoded half (wrapping like
+            // the count; a stale half from before it would read as a huge gap).
+            let gap = raw.first_word.wrapping_sub(dec.next_word);
+            if dec.session == Some(raw.session) && gap <= dec.rx.max_gap_words() {
+                // Only a dropped lock reports anything (at most one resync per
+                // channel, a period resync and a missing per channel).
+                busy.run(|| {
+                    dec.rx.skip(gap, &mut |ev| {
+                        if events.push((raw.first_word, ev.to_line_event())).is_err() {
+                            Stats::bump(&STATS.input_overruns);
+                        }
+                    })
+                });
+                for ev in events.drain(..) {
+                    HANS_EVENTS.send(ev).await;
+                }
+            } else if let Ok(rx) = fresh() {
                 dec.rx = rx;
             }
             dec.session = Some(raw.session);
         }
         dec.next_word = raw.first_word.wrapping_add(HANS_IN_HALF as u32);
-        let mut busy = Busy::new();
         for at in (0..HANS_IN_HALF).step_by(CHUNK) {
             let chunk = |n: usize| {
                 raw.words

@@ -450,3 +450,125 @@ fn limits_over_many_locks() {
     }
     println!("(no wrong frame at any point)");
 }
+
+/// Feeds `words` as the firmware does (`tasks/hans_in.rs`): 512-word halves in
+/// 64-word chunks, with the halves `from..from + halves` missing (dropped by the
+/// load governor): `HansRx::skip` tells the receiver. Returns the events.
+fn receive_with_gap(
+    words: &[Vec<u16>],
+    rx: &mut HansRx,
+    from: usize,
+    halves: usize,
+) -> Vec<RxEvent> {
+    const HALF: usize = 512;
+    let mut events = Vec::new();
+    let len = words[0].len() / HALF * HALF;
+    for half in (0..len / HALF).filter(|h| !(from..from + halves).contains(h)) {
+        if half == from + halves {
+            rx.skip((halves * HALF) as u32, &mut |e| events.push(e));
+        }
+        for at in (half * HALF..(half + 1) * HALF).step_by(64) {
+            let chunks: Vec<&[u16]> = words.iter().map(|w| &w[at..at + 64]).collect();
+            rx.push(&chunks, &mut |e| events.push(e));
+        }
+    }
+    events
+}
+
+/// Halves dropped mid-stream on the realistic line (±25 % jitter, ±1 % offset,
+/// ±2 samples of skew), as the firmware's governor drops them: the receiver coasts
+/// across 1..4 missing halves and publishes again within two frames of the first
+/// frame wholly after the gap (the line model's sampling phase is random within
+/// 200 ns, so "wholly after" is known to a frame), where a fresh receiver, what the
+/// firmware started before, needs a hunt and a young lock; and it never publishes a
+/// frame that was not sent, or one that lay in the gap.
+#[test]
+fn dropped_halves_are_coasted_across() {
+    const HALF: usize = 512;
+    let mut rng = ChaCha8Rng::seed_from_u64(66);
+    let (mut coasted, mut fresh_total, mut runs, mut relocked) = (0, 0, 0, 0);
+    for fs in [37.5e6, 40e6, 50e6] {
+        for offset in [-1.0, 0.0, 1.0] {
+            let frames = random_frames(208, &mut rng);
+            let line = Line {
+                fs_hz: fs,
+                offset_pct: offset,
+                jitter: 0.25,
+                skew: std::array::from_fn(|_| rng.random_range(-2.0..=2.0)),
+            };
+            let (words, _) = capture(&frames, line, [Fault::None; 5], rng.random());
+            // Frame k starts ~200 ns (a 100 ns line delay, ~100 ns of sampling
+            // phase) after 1 us + k frame periods, in words.
+            let frame_ps = 125.0 * BIT_PS / (1.0 + offset / 100.0);
+            let frame_at = |w: f64| (w * 16.0 * 1e12 / fs - 1_000_000.0) / frame_ps;
+            for halves in 1..=4 {
+                // From the half holding frame ~60 on (settled, past the young fit).
+                let from = ((60.0 * frame_ps + 1_000_000.0) * fs / 1e12 / 16.0) as usize / HALF;
+                let (g0, g1) = (from * HALF, (from + halves) * HALF);
+                let (in_gap, after) = (frame_at(g0 as f64), frame_at(g1 as f64).ceil() as usize);
+                for mode in MODES {
+                    let at = format!("{fs} Hz {offset} % {halves} halves {mode:?}");
+                    let mut rx = HansRx::new(fs.round() as u32, mode).unwrap();
+                    let got = published(&receive_with_gap(&words, &mut rx, from, halves));
+                    let (_, invented) = score(&frames, &got, LOCK_FRAMES);
+                    assert_eq!(invented, 0, "{at}: published frames that were not sent");
+                    let idx: Vec<usize> = got
+                        .iter()
+                        .map(|f| frames.iter().position(|s| s == f).unwrap())
+                        .collect();
+                    assert!(idx.windows(2).all(|w| w[0] < w[1]), "{at}: order");
+                    // Frames surely in the gap (a frame's margin either side).
+                    let sure = in_gap.ceil() as usize + 1..after.saturating_sub(1);
+                    assert!(!idx.iter().any(|k| sure.contains(k)), "{at}: {idx:?}");
+                    let first = *idx.iter().find(|&&k| k + 1 >= after).unwrap();
+                    // Every frame after that one arrives (but those cut by the last
+                    // whole half)...
+                    let end = frame_at((words[0].len() / HALF * HALF) as f64) as usize - 1;
+                    let lost = (first..end).filter(|k| !idx.contains(k)).count();
+                    assert!(rx.skipped() > 0, "{at}: no period skipped");
+                    runs += 1;
+                    if first > after + 2 || lost > 1 {
+                        // ...or the coast drifted too far and the lock was lost: then
+                        // it relocks as a fresh receiver would.
+                        assert!(
+                            lost <= LOCK_FRAMES,
+                            "{at}: {lost} frames lost, resumed at {first}"
+                        );
+                        assert!(!matches!(mode, Mode::Normal { .. }), "{at}: relocked");
+                        relocked += 1;
+                        continue;
+                    }
+                    // What the firmware did before: a fresh receiver after the gap.
+                    let mut fresh = HansRx::new(fs.round() as u32, mode).unwrap();
+                    let later: Vec<Vec<u16>> = words.iter().map(|w| w[g1..].to_vec()).collect();
+                    let again = published(&receive_with_gap(&later, &mut fresh, usize::MAX, 0));
+                    let fresh_first = frames
+                        .iter()
+                        .position(|s| Some(s) == again.first())
+                        .unwrap();
+                    assert!(
+                        fresh_first >= first + 5,
+                        "{at}: fresh at {fresh_first}, coasted {first}"
+                    );
+                    coasted += (first + 1).saturating_sub(after);
+                    fresh_total += (fresh_first + 1).saturating_sub(after);
+                }
+            }
+        }
+    }
+    let kept = runs - relocked;
+    println!(
+        "1..4 dropped halves, ±25 % jitter, {runs} runs: {kept} coasted, first frame published {:.2} frames after the first one wholly after the gap on average (a fresh receiver: {:.2}); {relocked} lost the lock after the gap and relocked",
+        coasted as f64 / kept as f64,
+        fresh_total as f64 / kept as f64
+    );
+    // Most runs resume with that frame itself or the next (the estimate of it is a
+    // frame off at most). Normal mode never loses the lock; the modes that time
+    // on several channels do at 37.5 MHz with a 1 % offset (their rate is worse
+    // than one channel's, README "Known limits"), and then relock.
+    assert!(
+        coasted <= 2 * kept,
+        "{coasted} frames late over {kept} runs"
+    );
+    assert!(relocked * 6 <= runs, "{relocked} of {runs} runs relocked");
+}

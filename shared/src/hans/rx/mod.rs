@@ -94,7 +94,9 @@
 //! dead redundant channel is visible in its counters at the frame rate, never just
 //! once; a channel that comes back aligns at the next start edge and counts frames
 //! again. In every locked period each used channel counts exactly one of frames
-//! ok, check failures, missing. **In the vote and super modes every decoded
+//! ok, check failures, missing; a period whose input was skipped
+//! ([`HansRx::skip`], [`gap`]: a settled lock coasts across) counts none of them
+//! but one [`HansRx::skipped`]. **In the vote and super modes every decoded
 //! period ends in exactly one frame or one period fault**, except the first
 //! `SETTLED - 2` of a lock (acquisition: frames verified, none published, nothing
 //! reported) (`channel: None`;
@@ -151,6 +153,7 @@
 //! what is left is listed in the README ("Known limits").
 
 pub mod channel;
+pub mod gap;
 pub mod modes;
 pub mod phase;
 pub mod ring;
@@ -301,7 +304,8 @@ pub struct ChannelStats {
     /// (dead, stuck, unplugged, or its start edge not found), or, while the frame
     /// timing is lost after a first lock, every nominal frame period of input. With
     /// `frames_ok` and `check_failures` it accounts for every locked frame period
-    /// the channel was used in, each exactly once.
+    /// the channel was used in, each exactly once, but those whose input was
+    /// skipped ([`HansRx::skipped`]).
     pub missing: u32,
 }
 
@@ -348,6 +352,8 @@ pub struct HansRx {
     /// them with the general path ([`HansRx::shortcuts`]).
     #[cfg(test)]
     general: bool,
+    /// Skipped input ([`HansRx::skip`]).
+    gaps: gap::Gaps,
 }
 
 impl HansRx {
@@ -397,6 +403,7 @@ impl HansRx {
             late: 0,
             #[cfg(test)]
             general: false,
+            gaps: gap::Gaps::default(),
         })
         .map(|mut rx| {
             rx.late = rx.latest();

@@ -192,6 +192,26 @@ impl Fit {
         }
     }
 
+    /// The fit of a settled lock that has just coasted across skipped input
+    /// ([`super::gap`]): `edges` start edges, one per frame, the latest `back`
+    /// frames before the current one (every residual zero: the timing is their
+    /// line). Weighs what the alpha-beta filter knows (it approximates the line
+    /// fit of its last `edges` start edges) against the points measured after the
+    /// gap, so the first verified frames' mid-pair edges move the phase most and
+    /// the rate by their lever arm across the gap.
+    pub fn prior(edges: u32, back: u32) -> Fit {
+        // Σj and Σj² for j = back .. back + edges - 1, from the sums from 0.
+        let sq = |m: i64| m * (m + 1) * (2 * m + 1) / 6;
+        let (n, b) = (i64::from(edges), i64::from(back));
+        let sum = n * b + n * (n - 1) / 2;
+        let squares = sq(b + n - 1) - sq(b - 1);
+        Fit {
+            n,
+            k: -BITS * sum,
+            kk: BITS * BITS * squares,
+        }
+    }
+
     /// Moves the origin to the next frame's start edge: every point is a frame
     /// further back.
     pub fn next_frame(&mut self) {
@@ -212,7 +232,9 @@ impl Fit {
         }
         // The sums stay far inside i64 over a young lock (`timing::YOUNG` frames of
         // at most 62 points): n < 2^12, |Σk| < 2^24, Σk² < 2^36, |Σr| < 2^24,
-        // |Σkr| < 2^30, so each product is below 2^61.
+        // |Σkr| < 2^30, so each product is below 2^61. A `prior` of up to 128
+        // edges reaching 256 frames back adds n < 2^8, |Σk| < 2^22, Σk² < 2^37
+        // (a few frames of points after it: |Σr| < 2^20), still below 2^61.
         let start = (self.kk * p.r - self.k * p.kr) / det;
         let period = BITS * (self.n * p.kr - self.k * p.r) / det;
         Correction {

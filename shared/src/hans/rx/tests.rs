@@ -525,6 +525,7 @@ proptest! {
 }
 
 mod dead;
+mod gap;
 mod periods;
 mod ring;
 mod steady;

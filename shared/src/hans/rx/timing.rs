@@ -37,6 +37,10 @@ pub const SETTLED: i32 = 8;
 /// frames fail (rate measured over one jittered frame) to see several verified
 /// frames; short enough for the fit's sums to stay small (see `Fit::add`).
 pub const YOUNG: i32 = 32;
+/// Frames after a coast across skipped input ([`super::gap`]) during which the
+/// timing is the least-squares line again, so that the first verified frames'
+/// mid-pair edges re-measure the phase the gap's prediction drifted.
+pub const RECENTRE: i32 = 2;
 /// Bits in a frame as the fixed-point multiplier.
 const BITS: i32 = FRAME_BITS as i32;
 
@@ -192,6 +196,23 @@ impl Timing {
         } else {
             2 * super::RELOCK_AFTER
         }
+    }
+
+    /// After a coast that predicted `frames` periods without a measured start
+    /// edge ([`super::gap`]): the fit becomes [`Fit::prior`] of the filter's
+    /// `FIT_FRAMES` (128) start edges that far back, and the next [`RECENTRE`]
+    /// frames are young (mid-pair edges measured, then the filter takes over
+    /// again at its settled gains).
+    pub fn recentre(&mut self, frames: u32) {
+        self.fit = Fit::prior(FIT_FRAMES as u32, frames);
+        self.fits = YOUNG - RECENTRE;
+    }
+
+    /// True when the rate is known well enough to predict across a gap: the
+    /// alpha-beta filter has taken over, or the young fit is in its last
+    /// [`RECENTRE`] frames (which also re-centre a coast).
+    pub fn coasts(&self) -> bool {
+        self.fits >= YOUNG - RECENTRE
     }
 
     /// True once the lock has measured [`SETTLED`] start edges.
