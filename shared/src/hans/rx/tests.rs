@@ -525,5 +525,6 @@ proptest! {
 }
 
 mod dead;
+mod hunt;
 mod periods;
 mod ring;
