@@ -43,10 +43,13 @@
 //! about three times as precisely.
 //!
 //! # Bounded work
-//! Per word at most 8 falling edges, each compared with at most [`CANDIDATES`]
-//! remembered ones; a pair is read at most three times (two-edge line, fitted
-//! line, margins) plus one mid-pair measurement and 2x2 solve, and a false pair
-//! usually stops after a few pairs. No loop depends on the data beyond that.
+//! Per word at most 2 candidates (a candidate needs 7 samples of ones and a zero),
+//! each paired with at most [`CANDIDATES`] remembered ones. A pair costs at most
+//! 7 frame reads of 125 samples and 4 mid-pair measurements with a 2x2 solve
+//! (two-edge line, up to three fit rounds, margins, continuation); a false pair
+//! usually stops within its first pairs, as a read gives up at [`MISREAD`] + 1
+//! wrong. No loop depends on the data beyond that, and only an unlocked receiver
+//! hunts.
 
 use super::phase::{self, Fit, Points};
 use super::ring::{diff, Ring, FRAC, HALF};
@@ -97,7 +100,7 @@ struct Held {
 pub struct Hunt {
     /// Length in samples of the run of ones that ends with the last word.
     run: u32,
-    /// Unconfirmed start candidates, newest first: the first `held` slots.
+    /// Unconfirmed start candidates, newest first: the first `count` slots.
     candidates: [u32; CANDIDATES],
     /// Candidates held.
     count: u8,
@@ -162,7 +165,7 @@ impl Hunt {
             self.held = None;
         }
         if found.is_some() {
-            *self = Hunt::default();
+            self.reset();
         }
         found
     }
