@@ -1,15 +1,10 @@
 //! What the receiver keeps per channel: the start-edge hunt used while no frame
 //! timing is known, and, once it is, the channel's delay against the shared timing.
 //!
-//! # Hunt (spec "receiving" item 2)
-//! The only run of three or more equal bits in a frame is the stop field (`1 1 1`,
-//! possibly preceded by a complement `1`), and it is always followed by the start bit
-//! `0` (marker `1 1 1 0 1`). A falling edge after at least 2.5 bit times of ones is
-//! therefore a frame-start candidate. Word-parallel: falling edges are
-//! `!w & (w >> 1 | carry)`, visited with `leading_zeros`, and a run's length comes
-//! from the nearest zero before it. A second candidate one frame period (±5 %) after
-//! the first measures the bit rate before any bit is trusted; the first channel to
-//! get there sets the shared timing ([`super::timing`]).
+//! # Hunt
+//! While no timing is known each used channel hunts for two start edges a frame
+//! apart ([`super::hunt`]); the first channel to confirm a pair sets the shared
+//! timing ([`super::timing`]).
 //!
 //! # Delay
 //! All channels come from one sender clock, so they share bit rate and phase up to a
@@ -17,7 +12,8 @@
 //! shared frame start is averaged (plain mean over the first 16 frames, then a 1/16
 //! filter, each step clamped to one sample so a glitch cannot throw it).
 
-use super::ring::{diff, Ring, FRAC, HALF};
+use super::hunt::{Found, Hunt};
+use super::ring::{Ring, FRAC, HALF};
 
 /// Measurements after which the delay filter stops narrowing.
 const DELAY_FITS: i32 = 16;
@@ -28,10 +24,8 @@ pub const DELAY_MAX: i32 = 8 << FRAC;
 /// Per-channel state.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Default)]
 pub struct Channel {
-    /// Length in samples of the run of ones that ends with the last word (hunt).
-    run: u32,
-    /// The unconfirmed start candidate (hunt).
-    first: Option<u32>,
+    /// The hunt, while no timing is known.
+    search: Hunt,
     /// Delay against the shared timing (Q16 samples), `None` while not aligned.
     pub delay: Option<i32>,
     /// Delay measurements so far (selects the filter gain).
@@ -43,8 +37,7 @@ pub struct Channel {
 impl Channel {
     /// Forgets the hunt (called when the shared timing locks or is lost).
     pub fn reset_hunt(&mut self) {
-        self.run = 0;
-        self.first = None;
+        self.search.reset();
     }
 
     /// Drops the alignment. Returns true if the channel was aligned.
@@ -85,65 +78,15 @@ impl Channel {
         }
     }
 
-    /// Hunts in word `w` (stream word `index`, bit 15 first, `prev` the word before).
-    /// `threshold` is the shortest run of ones (samples) before a candidate, `bounds`
-    /// the plausible frame periods (Q16). Returns the confirmed start edge and the
-    /// measured period when a candidate falls one period after the previous one.
+    /// Hunts in stream word `index` of `ring` ([`Hunt::word`]).
     pub fn hunt(
         &mut self,
+        ring: &Ring,
         index: u32,
-        w: u32,
-        prev: u32,
         threshold: u32,
         bounds: (i32, i32),
-    ) -> Option<(u32, i32)> {
-        let x = prev << 16 | w;
-        let mut falls = !x & (x >> 1) & 0xFFFF;
-        let base = index << (FRAC + 4);
-        let mut found = None;
-        while falls != 0 {
-            let j = 31 - falls.leading_zeros();
-            let s = 15 - j;
-            falls &= !(1 << j);
-            // Zeros earlier than s in this word: the nearest one bounds the run.
-            let zeros = !w & 0xFFFF & !((2u32 << j) - 1);
-            let run = if zeros == 0 {
-                self.run.saturating_add(s)
-            } else {
-                zeros.trailing_zeros() - j - 1
-            };
-            if run < threshold {
-                continue;
-            }
-            let meas = base.wrapping_add(s << FRAC).wrapping_sub(HALF);
-            if let Some(first) = self.first {
-                let d = diff(meas, first);
-                if (bounds.0..=bounds.1).contains(&d) {
-                    found = Some((meas, d));
-                    break;
-                }
-            }
-            // No candidate yet, or too close or too far: one of the two was not a
-            // frame start. The newer one is the better guess.
-            self.first = Some(meas);
-        }
-        let ones = w.trailing_ones();
-        self.run = if ones >= 16 {
-            self.run.saturating_add(16)
-        } else {
-            ones
-        };
-        // A candidate older than the longest period can never be confirmed.
-        if let Some(first) = self.first {
-            let end = base.wrapping_add(16 << FRAC);
-            if diff(end, first) > bounds.1 {
-                self.first = None;
-            }
-        }
-        if found.is_some() {
-            self.reset_hunt();
-        }
-        found
+    ) -> Option<Found> {
+        self.search.word(ring, index, threshold, bounds)
     }
 
     /// Looks for this channel's start edge near `at` (Q16, its expected position),

@@ -11,10 +11,17 @@
 //! All five channels come from one sender clock, so the receiver recovers the frame
 //! timing once ([`timing`]) and gives each channel only a delay against it
 //! ([`channel`]):
-//! 1. **Hunt** (no timing yet): every used channel looks for the `1 1 1 0 1`
-//!    start marker word by word; the first to see two of them one frame period
-//!    (±5 %) apart sets the timing: start edge and bit rate, measured over a whole
-//!    frame before any bit is trusted.
+//! 1. **Hunt** (no timing yet, [`hunt`]): every used channel looks for the
+//!    `1 1 1 0 1` start marker word by word and remembers the last few
+//!    candidates; a candidate one frame period (±5 %) after a remembered one is
+//!    confirmed only if the frame between the two **reads right** (start pair,
+//!    60 complement pairs, stop bits) on the least-squares line through the two
+//!    start edges and the frame's 61 mid-pair edges, so a stretched data run
+//!    (±25 % jitter) neither locks nor hides a true start edge. The first channel
+//!    to confirm sets the timing and hands the fit to the young lock
+//!    ([`timing::Timing::lock`]); a frame that does not also read right with the
+//!    line moved a quarter of a bit either way waits for the next frame, and the
+//!    lock starts on a two-frame fit.
 //! 2. **Frames**: the words are copied into per-channel rings ([`ring`]); once a
 //!    frame's samples up to its successor's start edge have arrived on every
 //!    channel, it is decoded in one go and published right away if its timing is
@@ -154,6 +161,7 @@
 
 pub mod channel;
 pub mod gap;
+pub mod hunt;
 pub mod modes;
 pub mod phase;
 pub mod ring;
@@ -605,14 +613,13 @@ impl HansRx {
             if self.used & (1 << n) == 0 {
                 continue;
             }
-            let (w, prev) = ring.word_and_prev(index);
-            if let Some(found) = ch.hunt(index, w, prev, threshold, bounds) {
+            if let Some(found) = ch.hunt(ring, index, threshold, bounds) {
                 lock = Some((n, found));
                 break;
             }
         }
-        if let Some((n, (start, period))) = lock {
-            self.timing.lock(start, period);
+        if let Some((n, found)) = lock {
+            self.timing.lock(found);
             self.locked = true;
             self.pending = None;
             self.reference = n;

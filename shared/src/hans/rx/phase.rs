@@ -59,6 +59,19 @@ pub struct Points {
 }
 
 impl Points {
+    /// The same points with bit indices counted from the next frame's start edge
+    /// (a frame later): the frame a new lock was measured over, whose own start
+    /// edge is the lock's earlier one.
+    pub fn frame_before(&self) -> Points {
+        Points {
+            n: self.n,
+            k: self.k - BITS * self.n,
+            kk: self.kk - 2 * BITS * self.k + BITS * BITS * self.n,
+            r: self.r,
+            kr: self.kr - BITS * self.r,
+        }
+    }
+
     /// One start edge measured `err` (Q16) after the timing's prediction of it (bit
     /// index 0 of the new frame).
     pub fn start_edge(err: i32) -> Points {

@@ -526,6 +526,7 @@ proptest! {
 
 mod dead;
 mod gap;
+mod hunt;
 mod periods;
 mod ring;
 mod steady;

@@ -3,7 +3,8 @@
 //!
 //! The five channels come from one sender clock, so one clock recovery serves them
 //! all; each channel only adds its own delay ([`super::channel`]). The bit rate is
-//! first measured over one whole frame (two start edges), then every frame's start
+//! first measured by the hunt over one or two whole frames, on their start edges
+//! and mid-pair edges ([`super::hunt`]), then every frame's start
 //! edge corrects phase and rate with an alpha-beta filter whose gains start as a
 //! least-squares line fit over the frames seen so far and settle at a fit over about
 //! 128 frames: a jittery edge moves the estimate very little while a ±1 % (or larger)
@@ -20,6 +21,7 @@
 //! edges cost ~1 700 instructions a frame and the fit's 64-bit divisions ~320,
 //! which only a young lock pays; `cargo xtask profile "young lock"`).
 
+use super::hunt::Found;
 use super::phase::{Correction, Fit, Points};
 use super::ring::{diff, FRAC};
 use crate::hans::FRAME_BITS;
@@ -84,11 +86,12 @@ impl Timing {
         ((self.nominal as u32).saturating_mul(5) + (1 << FRAC)) >> (FRAC + 1)
     }
 
-    /// Starts tracking: two start edges one `period` apart, the later at `start`.
-    pub fn lock(&mut self, start: u32, period: i32) {
-        self.fits = 2;
-        self.fit = Fit::lock();
-        self.set(start, period);
+    /// Starts tracking on the hunt's line ([`super::hunt`]): its start edges and
+    /// mid-pair edges are the young lock's first points.
+    pub fn lock(&mut self, found: Found) {
+        self.fits = found.edges;
+        self.fit = found.fit;
+        self.set(found.start, found.period);
     }
 
     fn set(&mut self, start: u32, period: i32) {
