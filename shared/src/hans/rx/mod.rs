@@ -136,6 +136,7 @@
 //! what is left is listed in the README ("Known limits").
 
 pub mod channel;
+pub mod confirm;
 pub mod modes;
 pub mod phase;
 pub mod ring;
@@ -648,14 +649,17 @@ impl HansRx {
         // noisy edge on one of them costs nothing); the others are confirmed on
         // their own.
         let mut confirmed = 0u8;
-        if self.confirmed(reference, start, ref_delay, ratio)
-            || bits(same & !(1 << reference)).any(|n| self.confirmed(n, start, delay(n), ratio))
+        if self.confirmed(reference, start, ref_delay, ratio, ref_pattern)
+            || bits(same & !(1 << reference))
+                .any(|n| self.confirmed(n, start, delay(n), ratio, ref_pattern))
         {
             confirmed = same;
         }
         for n in bits(aligned & !same) {
-            if self.confirmed(n, start, delay(n), ratio) {
-                confirmed |= 1 << n;
+            if let Some(&Some(p)) = patterns.get(n) {
+                if self.confirmed(n, start, delay(n), ratio, p) {
+                    confirmed |= 1 << n;
+                }
             }
         }
         // A young lock decodes and tracks, but publishes nothing yet (acquisition,
@@ -683,13 +687,22 @@ impl HansRx {
     /// True when channel `n`'s start edges of this frame (at `start` plus its
     /// `delay`) and of the next one (a frame later by the bit timing the pattern
     /// was read with) both lie within [`confirm_window`] of where that timing puts
-    /// them. Only then were the frame's bits read at their centres from the first
-    /// to the last: a false or missing start edge that moved the tracking leaves
-    /// the phase drifting within the frame, and a tail read a bit off is random
-    /// content whose complement pairs pass at 2^-n (README "Known limits"). The
-    /// start edge follows the stop field and the next falling edge comes two bits
-    /// later, so no other edge of a good line lies in either window.
-    fn confirmed(&self, n: usize, start: u32, delay: i32, ratio: i32) -> bool {
+    /// them, and the frame's last mid-pair edges, measured with `pattern` (read at
+    /// this channel's timing, or the reference's when the channel matched it
+    /// centre for centre), on average within [`confirm::tail_window`] (a quarter
+    /// bit, [`confirm::tail`]). Only then were the frame's bits read at their
+    /// centres from the first to the last: a false or missing start edge that
+    /// moved the tracking, or a phase that drifted or jumped within the frame,
+    /// leaves a tail read a bit off, random content whose complement pairs pass at
+    /// 2^-n (README "Known limits"). The start edge follows the stop field and the
+    /// next falling edge comes two bits later, so no other edge of a good line
+    /// lies in either start-edge window. The start edges are checked first: they
+    /// are cheaper and fail more often. The tail is checked once the lock has
+    /// settled ([`timing::SETTLED`]), i.e. on every frame that can be published:
+    /// before, a verified frame only feeds the young lock's fit, and the first
+    /// frames of a lock (its rate measured over one frame, up to a sample off at
+    /// the tail) are exactly those whose mid-pair edges fix the rate.
+    fn confirmed(&self, n: usize, start: u32, delay: i32, ratio: i32, pattern: u128) -> bool {
         let Some(ring) = self.rings.get(n) else {
             return false;
         };
@@ -706,7 +719,7 @@ impl HansRx {
                 at.wrapping_add(w).wrapping_add(up),
             )
             .is_some()
-        })
+        }) && (!self.timing.settled() || confirm::tail(ring, head, ratio, pattern))
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that

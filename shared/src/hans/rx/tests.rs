@@ -527,3 +527,4 @@ proptest! {
 mod dead;
 mod periods;
 mod ring;
+mod tail;
