@@ -15,8 +15,10 @@
 //! item 2), so the last [`TAIL_PAIRS`] pairs give that many edges at known bit
 //! boundaries whatever the data, in the part of the frame where a rate error has
 //! moved the phase furthest. They are measured as the young lock's fit measures
-//! them (`phase::PairEdges`: in the bit time centred on the boundary,
-//! the level before the edge taken from the pattern as read) and two means of
+//! them (`phase::PairEdges`: from the start of the bit time centred on the
+//! boundary, the level before the edge taken from the pattern as read; not
+//! saturated at the window's end, which only makes an edge further off count
+//! further off, and saves the bound per edge) and two means of
 //! their deviations from where the timing puts them are bounded: the **mean
 //! deviation** within [`tail_window`], a quarter bit (a phase error), and the
 //! **mean size** of the deviations within 3/8 bit (pairs read with the wrong
@@ -49,8 +51,9 @@
 //! jitter (`limits_over_many_locks`, tried and dropped).
 //!
 //! # Cost
-//! One edge is ~25 instructions on the M7 (two window loads, a funnel shift, a
-//! count, two sums), so ~200 per checked channel and frame; the channels that
+//! One edge is ~21 instructions on the M7 (two window loads, a funnel shift, a
+//! count, two sums), ~230 per checked channel and frame with the set-up and the
+//! start-edge part `HansRx::confirmed` shares (`cargo xtask profile`); the channels that
 //! matched the reference centre for centre hold its pattern and share one check
 //! (the first of them that confirms, normally the reference).
 
@@ -59,7 +62,7 @@ use super::ring::{Ring, FRAC, HALF};
 
 /// Mid-pair edges checked at the end of every frame: the data pairs of DATA3's
 /// last 8 bits. Eight bring the mean's jitter to a quarter of a single edge's
-/// (see the module docs) at ~20 instructions each; the 8 edges span the last 16
+/// (see the module docs) at ~21 instructions each; the 8 edges span the last 16
 /// bits, where a rate error has moved the phase as far as at the stop bits.
 pub const TAIL_PAIRS: u32 = 8;
 
@@ -85,22 +88,26 @@ pub fn tail_window(ratio: i32) -> u32 {
 /// [`tail_window`] of where that timing puts them, and their deviations'
 /// mean size within 1.5 times that. `pattern` is the frame's pattern as read
 /// (first bit at bit 124): it says which level comes before each edge; a pair
-/// read with the wrong level measures its edge half a bit off.
+/// read with the wrong level measures its edge half a bit early (at its window's
+/// start), an edge beyond its window where the level really changes (up to 32
+/// samples on).
 pub fn tail(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> bool {
     let mut edges = PairEdges::new(head, ratio, FIRST);
-    // Where the timing puts pair FIRST's edge (bit boundary 2 FIRST + 1), and
-    // each later one two bits further.
-    let mut at = head.wrapping_add((ratio as u32).wrapping_mul(2 * FIRST + 1));
+    // Where the timing puts pair FIRST's edge (bit boundary 2 FIRST + 1), plus
+    // the half sample of the measuring convention, and each later one two bits
+    // further.
     let step = (ratio as u32).wrapping_mul(2);
+    let mut at = head
+        .wrapping_add((ratio as u32).wrapping_mul(2 * FIRST + 1))
+        .wrapping_add(HALF);
     // Pair FIRST's first bit (pattern bit 124 - 2 FIRST) at bit 31, the next
     // pairs' every two bits below it.
     let mut bits = (pattern as u32) << (2 * FIRST - 93);
-    // Sums of the edges' deviations and of their sizes (Q16 samples; each within
-    // half a bit and a sample, < 2^18, so the sums fit).
+    // Sums of the edges' deviations and of their sizes (Q16 samples; each below
+    // 32 samples, so the sums fit).
     let (mut sum, mut spread) = (0i32, 0u32);
     for _ in 0..TAIL_PAIRS {
-        let c = edges.count(ring, bits);
-        let r = (c << FRAC).wrapping_sub(HALF).wrapping_sub(at) as i32;
+        let r = (edges.count_on(ring, bits) << FRAC).wrapping_sub(at) as i32;
         sum = sum.wrapping_add(r);
         spread = spread.wrapping_add(r.unsigned_abs());
         at = at.wrapping_add(step);
@@ -170,8 +177,8 @@ mod tests {
 
     /// The mean deviation and the mean size of the deviations (bits) `tail`
     /// compares, recomputed edge by edge in f64 from the samples: each checked
-    /// pair's edge (half a sample before its window's first sample at the second
-    /// level; the window is the bit time centred on the boundary) against that
+    /// pair's edge (half a sample before the first sample at the second level
+    /// from the start of the bit time centred on the boundary) against that
     /// boundary.
     fn mean_offset(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> (f64, f64) {
         let sample = |s: i64| {
@@ -182,12 +189,12 @@ mod tests {
         let (mut sum, mut spread) = (0.0, 0.0);
         for i in FIRST..PAIRS {
             let at = head + f64::from(2 * i + 1) * ratio;
-            let (lo, hi) = (
-                (at - ratio / 2.0).ceil() as i64,
-                (at + ratio / 2.0).ceil() as i64,
-            );
+            let lo = (at - ratio / 2.0).ceil() as i64;
             let first = (pattern >> (124 - 2 * i)) & 1 == 1;
-            let c = (lo..hi).find(|&s| sample(s) != first).unwrap_or(hi);
+            // Not bounded by the window's end (`PairEdges::count_on`): up to 32.
+            let c = (lo..lo + 32)
+                .find(|&s| sample(s) != first)
+                .unwrap_or(lo + 32);
             let d = c as f64 - 0.5 - at;
             sum += d;
             spread += d.abs();

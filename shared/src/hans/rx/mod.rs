@@ -20,10 +20,15 @@
 //!    channel, it is decoded in one go and published right away if its timing is
 //!    **confirmed**: the channel's start edge and the next frame's lie within 3/8
 //!    of a bit (centred on the samples such an edge can give) of where the bit
-//!    timing the pattern was read with puts them. Else the
+//!    timing the pattern was read with puts them, and, once the lock has settled,
+//!    the frame's last 8 mid-pair edges (every complement pair changes level in
+//!    its middle) lie on average within a quarter bit of where it puts them, their
+//!    deviations' mean size within 3/8 ([`confirm`]). Else the
 //!    phase may have drifted within the frame (a false or missing start edge moved
 //!    the tracking), and a tail read a bit off is random content whose complement
-//!    pairs pass at 2^-n: the channel counts a check failure instead. The
+//!    pairs pass at 2^-n: the channel counts a check failure instead. Channels
+//!    that matched the reference centre for centre hold one pattern and are
+//!    confirmed together by the first of them whose edges all pass. The
 //!    **reference** channel's 125 bit centres are gathered two windows (of 32
 //!    samples) at a time with a per-phase table and four multiplications per window
 //!    ([`table`]);
@@ -107,12 +112,15 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 1 880 instructions per frame for one channel at 3x (1 960 at 4x), 2 920
-//! for vote3 and 3 570 for vote5 / super (5 channels, 3x); as the firmware feeds
-//! it (40 MHz, 64-word chunks) 1 920 in normal mode and 3 690 in super mode, once
-//! a lock has settled: the young lock ([`phase`], its first [`timing::YOUNG`]
-//! frames) costs 6 130 in super mode as the firmware feeds it (bench row "young
-//! lock", frames 4..36; 8 530 before `phase::mid_pairs` was made a register-only
+//! About 2 050 instructions per frame for one channel at 3x (2 200 at 4x), 3 180
+//! for vote3 and 3 830 for vote5 / super (5 channels, 3x); as the firmware feeds
+//! it (40 MHz, 64-word chunks) 2 180 in normal mode and 3 960 in super mode, once
+//! a lock has settled (the tail confirmation, [`confirm`], added 180..270: about
+//! 230 in `confirmed` for 8 edges of the reference, the rest codegen around the
+//! call; before it 1 880 / 1 960 / 2 920 / 3 570, firmware 1 920 / 3 690): the
+//! young lock ([`phase`], its first [`timing::YOUNG`]
+//! frames) costs 6 360 in super mode as the firmware feeds it (bench row "young
+//! lock", frames 4..36; 6 130 before the tail confirmation, 8 530 before `phase::mid_pairs` was made a register-only
 //! loop of ~28 instructions an edge): ~1 700 measuring the 61 mid-pair edges,
 //! ~320 the fit's 64-bit divisions, ~430 the frame step's and `Timing::advance`'s
 //! fit bookkeeping; and for ~70 frames after it the rate settles from the fit's
@@ -127,7 +135,7 @@
 //! per 32-sample window, 88 per two-window step; plus ~110 in the bench's window
 //! for table entries met for the first time, which a running line stops paying
 //! once its phases have all been seen), its decode 125, the start-edge
-//! confirmation ~80, the timing filter ~70, copying the rings (one ring: ~5 per
+//! confirmation ~80 and the tail confirmation ~230, the timing filter ~70, copying the rings (one ring: ~5 per
 //! word with the per-call overhead, ~130 per frame; all five in vote5 / super: one
 //! pass, ~2.5 per word and channel plus ~85 per call, ~430 per frame for all
 //! five), per other channel ~12 per window for the centre compare (~200), and ~600
@@ -690,7 +698,7 @@ impl HansRx {
     /// them, and the frame's last mid-pair edges, measured with `pattern` (read at
     /// this channel's timing, or the reference's when the channel matched it
     /// centre for centre), on average within [`confirm::tail_window`] (a quarter
-    /// bit, [`confirm::tail`]). Only then were the frame's bits read at their
+    /// bit; their deviations' mean size within 3/8, [`confirm::tail`]). Only then were the frame's bits read at their
     /// centres from the first to the last: a false or missing start edge that
     /// moved the tracking, or a phase that drifted or jumped within the frame,
     /// leaves a tail read a bit off, random content whose complement pairs pass at
@@ -701,7 +709,10 @@ impl HansRx {
     /// settled ([`timing::SETTLED`]), i.e. on every frame that can be published:
     /// before, a verified frame only feeds the young lock's fit, and the first
     /// frames of a lock (its rate measured over one frame, up to a sample off at
-    /// the tail) are exactly those whose mid-pair edges fix the rate.
+    /// the tail) are exactly those whose mid-pair edges fix the rate. Checking
+    /// one channel of those that matched the reference suffices for all of them:
+    /// they hold its samples at every centre (shifted by whole samples), so edges
+    /// where one member's timing puts them vouch for the pattern they share.
     fn confirmed(&self, n: usize, start: u32, delay: i32, ratio: i32, pattern: u128) -> bool {
         let Some(ring) = self.rings.get(n) else {
             return false;
@@ -1053,7 +1064,8 @@ impl HansRx {
 }
 
 /// Half-width (Q16 samples) of the windows in which [`HansRx::confirmed`] wants a
-/// frame's start edge and its successor's: 3/8 of a bit. A good line's edge lies
+/// frame's start edge and its successor's: 3/8 of a bit (the frame's tail is
+/// checked on its mid-pair edges, [`confirm::tail_window`]). A good line's edge lies
 /// within its jitter plus half a sample (1/6 bit at 3x) of a settled prediction,
 /// so up to about +-20 % jitter costs nothing. Half a bit let one wrong frame in
 /// 250 000 through in the HANS campaign (normal mode, +-15 % jitter, edge faults):

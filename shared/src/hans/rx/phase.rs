@@ -176,16 +176,34 @@ impl PairEdges {
     pub(super) fn count(&mut self, ring: &Ring, bits: u32) -> u32 {
         let lo = self.lo_q >> FRAC;
         let n = (self.hi_q >> FRAC).wrapping_sub(lo) & 0xFFFF;
+        self.hi_q = self.hi_q.wrapping_add(self.step);
+        lo.wrapping_add(self.run(ring, bits).min(n))
+    }
+
+    /// [`PairEdges::count`] without the window's end: the samples at the first
+    /// level from the window's start up to the next level change, however far (at
+    /// most 32). The same count for an edge inside the window, and a larger one
+    /// for an edge beyond it: a check that wants edges near their place (the
+    /// tail confirmation) needs no saturation, and skips its per-edge cost.
+    #[inline(always)]
+    pub(super) fn count_on(&mut self, ring: &Ring, bits: u32) -> u32 {
+        let lo = self.lo_q >> FRAC;
+        lo.wrapping_add(self.run(ring, bits))
+    }
+
+    /// The samples at the level of bit 31 of `bits` from the next window's start
+    /// (at most 32); moves the window's start on to the next pair.
+    #[inline(always)]
+    fn run(&mut self, ring: &Ring, bits: u32) -> u32 {
+        let lo = self.lo_q >> FRAC;
         // Window `lo >> 5` and the next (`window` takes them modulo the ring).
         let (j, s) = (lo >> 5, lo & 31);
         let next = self.lo_q.wrapping_add(1 << (FRAC + 5)) >> (FRAC + 5);
         let x = ring.window(j) << s | (ring.window(next) >> 1) >> (31 - s);
         // Samples at the pair's first level, counted from the window's start.
         let first = 0u32.wrapping_sub(bits >> 31);
-        let c = lo.wrapping_add((x ^ first).leading_zeros().min(n));
         self.lo_q = self.lo_q.wrapping_add(self.step);
-        self.hi_q = self.hi_q.wrapping_add(self.step);
-        c
+        (x ^ first).leading_zeros()
     }
 }
 
