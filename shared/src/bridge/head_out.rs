@@ -13,11 +13,14 @@
 //! # Cost
 //! The wire words are computed here, straight from each position's MSB-aligned
 //! value, and the transmitter only fills the slot (`write_words` /
-//! `encode_words`): rounding to the field is one saturating add, the XY2-100 parity
-//! bit is the value's parity (a few XOR folds and one multiply) XOR a constant of the
-//! link's mode and parity scope, the XY3-100 parity is the value's count of ones.
-//! Each mode / parity scope / frame size has its own copy of the word code, so the
-//! header and parity constants fold instead of being looked up per frame; the
+//! `encode_words`): rounding to the field is one saturating add, and the protocol
+//! modules' position-word functions ([`xy2::position_word`],
+//! [`xy3::frame::position_bits_word`], the one place each layout is written down)
+//! turn the value into the word: the XY2-100 parity bit is the value's parity (a
+//! few XOR folds) XOR a constant of the link's mode and parity scope, the XY3-100
+//! parity is the value's count of ones. Each mode / parity scope / frame size has
+//! its own copy of the word code, so the header and parity constants fold instead
+//! of being looked up per frame; the
 //! checked routes through the frame enums (`xy2::encode`, `xy3::encode`) are only
 //! taken for commands. The tests compare every output with those routes. About
 //! 210 instructions for one slot on each of the worst path's heads together
@@ -95,38 +98,25 @@ impl HeadTx {
     }
 }
 
-/// `p` at a field of `32 - SHIFT` bits (`SHIFT` 1..=31): [`Position::to_raw`]'s
-/// rounding (to nearest, ties upward, saturated at full scale) in one saturating
-/// add. Below full scale the sum cannot wrap (the value is below the field's top
-/// step and the half step below one step); at full scale it either stays in the top
-/// step or saturates there, and both shift down to the field's maximum.
+/// `p` at a field of `bits` bits (1..=31; a constant after inlining):
+/// [`Position::to_raw`]'s rounding (to nearest, ties upward, saturated at full scale)
+/// in one saturating add. Below full scale the sum cannot wrap (the value is below
+/// the field's top step and the half step below one step); at full scale it either
+/// stays in the top step or saturates there, and both shift down to the field's
+/// maximum.
 #[inline(always)]
-fn rounded<const SHIFT: u32>(p: Position) -> u32 {
-    p.aligned().saturating_add(1 << (SHIFT - 1)) >> SHIFT
-}
-
-/// The parity of the ones in `v`, a value below `2^bits`: XOR of every bit, folded
-/// in halves (for a constant `bits`, four or five XORs with shifted operands and no
-/// constants).
-#[inline(always)]
-fn ones_parity(v: u32, bits: u32) -> u32 {
-    let mut v = v;
-    let mut half = 16;
-    while half > 0 {
-        if half < bits {
-            v ^= v >> half;
-        }
-        half >>= 1;
-    }
-    v & 1
+fn rounded(p: Position, bits: u32) -> u32 {
+    let shift = 32 - bits;
+    p.aligned().saturating_add(1 << (shift - 1)) >> shift
 }
 
 /// The XY2-100 wire words of one slot (X, Y, Z; Z 0 without a Z line), or `None`
 /// if `f` lacks one of them or the link cannot carry it. Exactly what
 /// [`xy2::tx::Transmitter::write_frame`] would write for the frames
 /// `xy2::Frame::from_position` / `from_command` give (the tests check it), with the
-/// position words computed straight from the aligned value, one copy per mode and
-/// parity scope so the header and parity constants fold.
+/// position words computed straight from the rounded value by
+/// [`xy2::position_word`], one copy per mode and parity scope so its header and
+/// parity constants fold.
 #[inline(always)]
 fn xy2_words(
     tx: &xy2::tx::Transmitter,
@@ -140,41 +130,34 @@ fn xy2_words(
     if mode != link.mode {
         return None;
     }
-    // A position word is header | value << 1 | parity, and the value's bits all lie
-    // in the parity scope of every policy (`xy2::frame`), so the parity bit is the
-    // value's parity XOR a constant: the header bit if the scope counts it (whole
-    // frame), XOR 1 for the odd parity of 18-bit positions.
+    // `Parity::Ignore` encodes whole-frame parity, like `xy2::encode`.
     use xy2::{Mode, Parity};
     match (mode, link.parity) {
-        (Mode::Standard16, Parity::DataOnly) => xy2_slot::<16, { 1 << 17 }, 0>(f, &link, z),
-        (Mode::Standard16, _) => xy2_slot::<16, { 1 << 17 }, 1>(f, &link, z),
-        (Mode::Extended18, Parity::DataOnly) => xy2_slot::<14, { 1 << 19 }, 1>(f, &link, z),
-        (Mode::Extended18, _) => xy2_slot::<14, { 1 << 19 }, 0>(f, &link, z),
+        (Mode::Standard16, Parity::DataOnly) => xy2_slot::<16, false>(f, &link, z),
+        (Mode::Standard16, _) => xy2_slot::<16, true>(f, &link, z),
+        (Mode::Extended18, Parity::DataOnly) => xy2_slot::<18, false>(f, &link, z),
+        (Mode::Extended18, _) => xy2_slot::<18, true>(f, &link, z),
     }
 }
 
-/// [`xy2_words`] for positions of `32 - SHIFT` bits with `HEADER` and a parity bit of
-/// the value's parity XOR `FLIP`.
+/// [`xy2_words`] for positions of `BITS` bits and whole-frame parity if `WHOLE`.
 #[inline(always)]
-fn xy2_slot<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(
+fn xy2_slot<const BITS: u32, const WHOLE: bool>(
     f: &ForwardFrame,
     link: &xy2::LinkConfig,
     z: bool,
 ) -> Option<[u32; 3]> {
+    // Inner functions, not closures: those are not inlined here, and each call
+    // would then pay for a call and the constants it could not fold.
     #[inline(always)]
-    fn word<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(p: Position) -> u32 {
-        let value = rounded::<SHIFT>(p);
-        // The header lies above the value and FLIP in bit 0: one XOR sets both.
-        (value << 1 | ones_parity(value, 32 - SHIFT)) ^ (HEADER | FLIP)
+    fn word<const BITS: u32, const WHOLE: bool>(p: Position) -> u32 {
+        xy2::position_word::<BITS, WHOLE>(rounded(p, BITS))
     }
     #[inline(always)]
-    fn pos<const SHIFT: u32, const HEADER: u32, const FLIP: u32>(
-        f: &ForwardFrame,
-        a: Axis,
-    ) -> Option<u32> {
-        f.axis(a).map(word::<SHIFT, HEADER, FLIP>)
+    fn pos<const BITS: u32, const WHOLE: bool>(f: &ForwardFrame, a: Axis) -> Option<u32> {
+        f.axis(a).map(word::<BITS, WHOLE>)
     }
-    let pos = |a: Axis| pos::<SHIFT, HEADER, FLIP>(f, a);
+    let pos = |a: Axis| pos::<BITS, WHOLE>(f, a);
     // A command rides on X in place of the position (XY2-100 enhanced); a command
     // XY2-100 cannot carry falls back to the X position.
     let x = match f.command.and_then(xy2::Frame::from_command) {
@@ -208,37 +191,36 @@ fn xy3_words(tx: &xy3::tx::Transmitter, f: &ForwardFrame, lines: Lines) -> Optio
     }
     // One copy per frame size, so the layout constants fold.
     match tx.size() {
-        xy3::FrameSize::Bits24 => xy3_slot::<12, { 0b01 << 22 }, 2>(f, lines),
-        xy3::FrameSize::Bits32 => xy3_slot::<6, { 0b11 << 30 }, 4>(f, lines),
+        xy3::FrameSize::Bits24 => xy3_slot::<false>(f, lines),
+        xy3::FrameSize::Bits32 => xy3_slot::<true>(f, lines),
     }
 }
 
-/// [`xy3_words`] for frames with positions of `32 - SHIFT` bits, size and mode bits
-/// `HEADER` and `PARITY` parity bits. A position word is computed straight from
-/// the aligned value (XY3-100 §5.1 layout: size and mode bits, the position, its
-/// count of ones modulo 4 or 16).
+/// [`xy3_words`] for 32-bit frames if `BITS32`, else 24-bit ones. A position word
+/// is computed straight from the rounded value by
+/// [`xy3::frame::position_bits_word`] (XY3-100 §5.1 layout).
 #[inline(always)]
-fn xy3_slot<const SHIFT: u32, const HEADER: u32, const PARITY: u32>(
-    f: &ForwardFrame,
-    lines: Lines,
-) -> Option<[u32; 5]> {
-    let size = match SHIFT {
-        12 => xy3::FrameSize::Bits24,
-        _ => xy3::FrameSize::Bits32,
+fn xy3_slot<const BITS32: bool>(f: &ForwardFrame, lines: Lines) -> Option<[u32; 5]> {
+    let size = if BITS32 {
+        xy3::FrameSize::Bits32
+    } else {
+        xy3::FrameSize::Bits24
     };
+    // Inner functions, not closures (see `xy2_slot`).
     #[inline(always)]
-    fn word<const SHIFT: u32, const HEADER: u32, const PARITY: u32>(p: Position) -> u32 {
-        let value = rounded::<SHIFT>(p);
-        HEADER | value << PARITY | (value.count_ones() & ((1 << PARITY) - 1))
+    fn word<const BITS32: bool>(p: Position) -> u32 {
+        let size = if BITS32 {
+            xy3::FrameSize::Bits32
+        } else {
+            xy3::FrameSize::Bits24
+        };
+        xy3::frame::position_bits_word(rounded(p, u32::from(size.position_bits())), size)
     }
     #[inline(always)]
-    fn pos<const SHIFT: u32, const HEADER: u32, const PARITY: u32>(
-        f: &ForwardFrame,
-        a: Axis,
-    ) -> Option<u32> {
-        f.axis(a).map(word::<SHIFT, HEADER, PARITY>)
+    fn pos<const BITS32: bool>(f: &ForwardFrame, a: Axis) -> Option<u32> {
+        f.axis(a).map(word::<BITS32>)
     }
-    let pos = |a: Axis| pos::<SHIFT, HEADER, PARITY>(f, a);
+    let pos = |a: Axis| pos::<BITS32>(f, a);
     // The command frame takes X's place (XY3-100 sends commands on the X line).
     let x = match f.command {
         Some(c) => command_frame(&c, size)

@@ -188,33 +188,64 @@ const fn parity_bit(word: u32, kind: FrameKind, policy: Parity) -> u32 {
 
 /// Encodes `frame` as a right-aligned 20-bit word for a link configured as `config`.
 pub fn encode(frame: Frame, config: &LinkConfig) -> Result<u32, EncodeError> {
-    let mode = config.mode;
-    let body = match (frame, mode) {
-        (Frame::Position16(v), Mode::Standard16) => return Ok(position16_word(v, config.parity)),
+    match (frame, config.mode) {
+        (Frame::Position16(v), Mode::Standard16) => Ok(position16_word(v, config.parity)),
         (Frame::Command { command, parameter }, Mode::Standard16) => {
-            HEADER_COMMAND << 17 | u32::from(command) << 9 | u32::from(parameter) << 1
+            let body = HEADER_COMMAND << 17 | u32::from(command) << 9 | u32::from(parameter) << 1;
+            Ok(body | parity_bit(body, FrameKind::Command, config.parity))
         }
+        (Frame::Position18(v), Mode::Extended18) if v > MAX_POSITION18 => {
+            Err(EncodeError::ValueTooWide { value: v })
+        }
+        // As for 16-bit positions, the scopes differ in the parity bit alone.
         (Frame::Position18(v), Mode::Extended18) => {
-            if v > MAX_POSITION18 {
-                return Err(EncodeError::ValueTooWide { value: v });
-            }
-            1 << 19 | v << 1
+            Ok(position_word::<18, true>(v) ^ u32::from(config.parity == Parity::DataOnly))
         }
-        (f, mode) => {
-            return Err(EncodeError::WrongMode {
-                kind: f.kind(),
-                mode,
-            })
-        }
-    };
-    Ok(body | parity_bit(body, frame.kind(), config.parity))
+        (f, mode) => Err(EncodeError::WrongMode {
+            kind: f.kind(),
+            mode,
+        }),
+    }
 }
 
 /// The word of a 16-bit position frame; infallible, so the STATUS word (which always
 /// uses this layout) needs no error path.
 pub(super) fn position16_word(value: u16, parity: Parity) -> u32 {
-    let body = HEADER_POSITION16 << 17 | u32::from(value) << 1;
-    body | parity_bit(body, FrameKind::Position16, parity)
+    // The two scopes differ by the header's one bit, i.e. in the parity bit alone.
+    position_word::<16, true>(u32::from(value)) ^ u32::from(parity == Parity::DataOnly)
+}
+
+/// The word of a position frame of `BITS` (16 or 18) bits holding `value`, with the
+/// parity of the whole frame (`WHOLE`, also what [`Parity::Ignore`] emits) or of the
+/// data bits only. Bits of `value` above `BITS` are dropped; a caller that computes
+/// `value` in a field of that width loses nothing, and the mask then folds away.
+///
+/// This is the one place the position layout is written down; it is built for the
+/// hot path (the head encoder calls it per axis and frame): the value's bits lie in
+/// every parity scope, so the parity bit is the value's parity XOR a constant (the
+/// header's one set bit if the scope counts it, and 1 for the odd parity of 18-bit
+/// positions), computed in a few XOR folds instead of a count.
+#[inline(always)]
+pub fn position_word<const BITS: u32, const WHOLE: bool>(value: u32) -> u32 {
+    let value = value & ((1 << BITS) - 1);
+    let (header, odd) = if BITS == 18 {
+        (1 << 19, 1)
+    } else {
+        (HEADER_POSITION16 << 17, 0)
+    };
+    let flip = WHOLE as u32 ^ odd;
+    // Parity of `value` by halving folds; for a constant `BITS` these are four or
+    // five XORs with shifted operands and no constants.
+    let mut folded = value;
+    let mut half = 16;
+    while half > 0 {
+        if half < BITS {
+            folded ^= folded >> half;
+        }
+        half >>= 1;
+    }
+    // The header lies above the value and `flip` in bit 0: one XOR sets both.
+    (value << 1 | (folded & 1)) ^ (header | flip)
 }
 
 /// Decodes a right-aligned 20-bit word received on a link configured as `config`.

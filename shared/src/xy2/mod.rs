@@ -83,8 +83,8 @@ pub mod tx;
 pub mod vectors;
 
 pub use frame::{
-    decode, detected_double_errors, encode, DecodeError, EncodeError, Frame, FrameKind, LinkConfig,
-    Mode, Parity, BIT_PAIRS, FRAME_BITS, FRAME_MASK,
+    decode, detected_double_errors, encode, position_word, DecodeError, EncodeError, Frame,
+    FrameKind, LinkConfig, Mode, Parity, BIT_PAIRS, FRAME_BITS, FRAME_MASK,
 };
 pub use neutral::AxisItem;
 pub use status::{Health, Polarity, StatusError, StatusLevel, StatusWord};

@@ -248,6 +248,16 @@ const fn position_word(value: u32, size: FrameSize) -> Result<(u32, FrameSize), 
     Ok((assemble(size, true, value), size))
 }
 
+/// The word of a position frame of `size` holding the low
+/// [`FrameSize::position_bits`] of `value` (bits above are dropped). For a hot path
+/// that computes `value` in a field of that width (the head encoder, per axis and
+/// frame): with a constant `size` the layout folds to a shift, an OR of the size and
+/// mode bits and a count of ones, and the mask folds away.
+#[inline(always)]
+pub const fn position_bits_word(value: u32, size: FrameSize) -> u32 {
+    assemble(size, true, value & size.counted_mask())
+}
+
 /// Decodes one channel's wire word of the size the receiver's framing gave (the number
 /// of clocks inside the SYNC-low window, or [`FrameSize::from_first_bit`] for a
 /// streaming receiver).

@@ -112,20 +112,22 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 2 050 instructions per frame for one channel at 3x (2 200 at 4x), 3 180
-//! for vote3 and 3 830 for vote5 / super (5 channels, 3x); as the firmware feeds
-//! it (40 MHz, 64-word chunks) 2 180 in normal mode and 3 960 in super mode, once
-//! a lock has settled (the tail confirmation, [`confirm`], added 180..270: about
-//! 230 in `confirmed` for 8 edges of the reference, the rest codegen around the
-//! call; before it 1 880 / 1 960 / 2 920 / 3 570, firmware 1 920 / 3 690): the
-//! young lock ([`phase`], its first [`timing::YOUNG`]
-//! frames) costs 6 360 in super mode as the firmware feeds it (bench row "young
-//! lock", frames 4..36; 6 130 before the tail confirmation, 8 530 before `phase::mid_pairs` was made a register-only
+//! About 1 930 instructions per frame for one channel at 3x (2 080 at 4x), 2 910
+//! for vote3 and 3 390 for vote5 / super (5 channels, 3x); as the firmware feeds
+//! it (40 MHz, 64-word chunks) 2 050 in normal mode and 3 520 in super mode, once
+//! a lock has settled (the tail confirmation, [`confirm`], adds 150..230: about 230
+//! in `confirmed` for the reference's 8 last mid-pair edges, the rest the code
+//! around the call; before it 1 780 / 1 870 / 2 690 / 3 170, firmware 1 830 /
+//! 3 290, young lock 5 780): the young lock ([`phase`], its first [`timing::YOUNG`]
+//! frames) costs 5 980 in super mode as the firmware feeds it (bench row "young
+//! lock", frames 4..36; 8 530 before `phase::mid_pairs` was made a register-only
 //! loop of ~28 instructions an edge): ~1 700 measuring the 61 mid-pair edges,
 //! ~320 the fit's 64-bit divisions, ~430 the frame step's and `Timing::advance`'s
 //! fit bookkeeping; and for ~70 frames after it the rate settles from the fit's
 //! estimate, dropping the gather table at every step (~370 more per frame,
-//! measured over frames 36..68 of a lock). Before the young fit and centred confirmation 1 930 / 1 940 /
+//! measured over frames 36..68 of a lock). Before the steady-state shortcuts
+//! (below) 1 870 / 1 960 / 2 920 / 3 570 (firmware 1 920 / 3 690, young lock
+//! 6 130). Before the young fit and centred confirmation 1 930 / 1 940 /
 //! 2 970 / 3 560 (firmware 1 900 / 3 660).
 //! Before the five-ring store took the chunks and range itself 1 940 / 1 945 /
 //! 2 980 / 3 580 (firmware 1 910 / 3 700), before the five-ring store 1 970 /
@@ -134,13 +136,26 @@
 //! design. Per frame at 3x that is roughly: gathering the reference ~760 (about 44
 //! per 32-sample window, 88 per two-window step; plus ~110 in the bench's window
 //! for table entries met for the first time, which a running line stops paying
-//! once its phases have all been seen), its decode 125, the start-edge
+//! once its phases have all been seen; ~950 at 40 MHz, where the step loop
+//! spills), its decode 125, the start-edge
 //! confirmation ~80 and the tail confirmation ~230, the timing filter ~70, copying the rings (one ring: ~5 per
 //! word with the per-call overhead, ~130 per frame; all five in vote5 / super: one
 //! pass, ~2.5 per word and channel plus ~85 per call, ~430 per frame for all
-//! five), per other channel ~12 per window for the centre compare (~200), and ~600
-//! of per-frame bookkeeping (`frame`, `next`, `evaluate`, `need`) of which ~120 per
-//! extra channel. **Still over the 1 200-instruction budget of the worst path**;
+//! five), per other channel ~12 per window for the centre compare (~200), and
+//! ~520 of per-frame bookkeeping (`push_at`, `frame`, `next`, `edges`,
+//! `evaluate`, `need`) for one channel, ~750 for five (~1 190 before the
+//! shortcuts). The **steady-state shortcuts**: `frame` reads the delays in one
+//! pass when every used channel is aligned (aligning the others out of line),
+//! compares the other channels before gathering only those that differ, and
+//! clears no per-channel patterns when none does; `evaluate` publishes a frame
+//! every channel verified without the per-channel checks (as before); `next` takes a lone
+//! measured reference that verified as the consensus (no median, its tracking
+//! step is zero); `need` reads the latest delay kept in a field instead of
+//! walking the channels twice a frame. Each concludes what the general path
+//! does: a test build can turn them off, and `tests::steady` checks on random
+//! lines (jitter, skew, glitches, dead and noisy channels, gaps, every mode and
+//! chunking) that events, positions and the whole receiver state are the same
+//! after every push. **Still over the 1 200-instruction budget of the worst path**;
 //! what is left is listed in the README ("Known limits").
 
 pub mod channel;
@@ -336,6 +351,12 @@ pub struct HansRx {
     /// controller never connected: the bridge's input timeout covers that), and
     /// every healthy channel would count the acquisition's first periods.
     seen: bool,
+    /// [`HansRx::latest`], kept up to date.
+    late: i32,
+    /// Test builds only: the steady-state shortcuts off, so that a test can compare
+    /// them with the general path ([`HansRx::shortcuts`]).
+    #[cfg(test)]
+    general: bool,
 }
 
 impl HansRx {
@@ -382,6 +403,13 @@ impl HansRx {
             frames: 0,
             idle: 0,
             seen: false,
+            late: 0,
+            #[cfg(test)]
+            general: false,
+        })
+        .map(|mut rx| {
+            rx.late = rx.latest();
+            rx
         })
     }
 
@@ -519,13 +547,9 @@ impl HansRx {
     /// which confirms the frame's timing before it is published.
     fn need(&self) -> u32 {
         let t = &self.timing;
-        let mut late = 0;
-        for (n, c) in self.channels.iter().enumerate() {
-            // A channel aligning at this frame may be up to the delay limit late.
-            if self.used & (1 << n) != 0 {
-                late = late.max(c.delay.unwrap_or(channel::DELAY_MAX));
-            }
-        }
+        #[cfg(test)]
+        assert_eq!(self.late, self.latest(), "`late` missed a delay change");
+        let late = self.late;
         // The frame to decode next starts at the current edge, or, once that frame
         // is done, at the predicted next one (whose edge window lies before its
         // last centre).
@@ -543,6 +567,33 @@ impl HansRx {
         // Two samples of slack: a table-gathered centre (or a shifted compare) may
         // fall one sample after the exact position.
         (last.wrapping_add(late as u32).wrapping_add(2 << FRAC) >> 20).wrapping_add(1)
+    }
+
+    /// True unless a test turned the steady-state shortcuts off: `evaluate`'s for a
+    /// frame every channel verified, `next`'s for a lone measured reference. Each
+    /// concludes what the general path does; `tests::steady` checks that on
+    /// random lines.
+    #[inline(always)]
+    fn shortcuts(&self) -> bool {
+        #[cfg(test)]
+        return !self.general;
+        #[cfg(not(test))]
+        true
+    }
+
+    /// The latest delay of a used channel; one not aligned counts as
+    /// [`channel::DELAY_MAX`] (it may align at this frame that late). Kept in
+    /// `late` by every change of a delay (six places: the hunt's lock, `align`,
+    /// `evaluate`, `edges`, the tracking in `next`, `lose`), so that
+    /// [`HansRx::need`], twice a frame, does not walk the channels.
+    fn latest(&self) -> i32 {
+        let mut late = 0;
+        for (n, c) in self.channels.iter().enumerate() {
+            if self.used & (1 << n) != 0 {
+                late = late.max(c.delay.unwrap_or(channel::DELAY_MAX));
+            }
+        }
+        late
     }
 
     /// Hunts in the word just stored, on every used channel; the first channel to
@@ -577,6 +628,7 @@ impl HansRx {
             if let Some(ch) = self.channels.get_mut(n) {
                 ch.align(0);
             }
+            self.late = self.latest();
             self.need = self.need();
         }
     }
@@ -587,71 +639,82 @@ impl HansRx {
         let ratio = self.timing.ratio;
         let start = self.timing.start;
         let half_bit = (ratio / 2) as u32 + HALF;
-        // Channels not aligned yet try at this frame's start edge.
+        // Channels not aligned yet try at this frame's start edge. A settled lock
+        // has every used channel aligned: then one pass over the delays is all.
+        let used = self.used;
+        let mut delays = [0i32; CHANNELS];
         let mut aligned = 0u8;
-        for n in bits(self.used) {
-            let (Some(ch), Some(ring)) = (self.channels.get_mut(n), self.rings.get(n)) else {
-                continue;
-            };
-            if ch.delay.is_none() {
-                if let Some(e) = Channel::edge(ring, start, ratio) {
-                    ch.align(diff(e, start));
-                }
-            }
-            if ch.delay.is_some() {
+        for (n, (ch, d)) in self.channels.iter().zip(delays.iter_mut()).enumerate() {
+            if let Some(delay) = ch.delay {
+                *d = delay;
                 aligned |= 1 << n;
             }
+        }
+        aligned &= used;
+        if aligned != used {
+            aligned = self.align(used & !aligned, aligned, &mut delays);
         }
         if aligned == 0 {
             self.lose(sink);
             return;
         }
         // Counted every period a channel stays dead: one test in the healthy case.
-        if aligned != self.used {
-            self.missing(self.used & !aligned, sink);
+        if aligned != used {
+            self.missing(used & !aligned, sink);
         }
         if aligned & (1 << self.reference) == 0 {
             self.reference = aligned.trailing_zeros() as usize;
         }
         let reference = self.reference;
-        let delay = |n: usize| self.channels.get(n).and_then(|c| c.delay).unwrap_or(0);
+        let delay = |n: usize| delays.get(n).copied().unwrap_or(0);
         let ref_delay = delay(reference);
         self.table.follow(ratio);
         let Some(ring) = self.rings.get(reference) else {
             return;
         };
         let first = start.wrapping_add(ref_delay as u32).wrapping_add(half_bit);
-        let ref_pattern = if aligned == 1 << reference {
+        let others = aligned & !(1 << reference);
+        let ref_pattern = if others == 0 {
             ring.gather::<false>(&mut self.table, first, ratio as u32, &mut self.centres)
         } else {
             ring.gather::<true>(&mut self.table, first, ratio as u32, &mut self.centres)
         };
-        let mut patterns = [None; CHANNELS];
+        // Every other channel against the reference's centres, shifted by the whole
+        // samples between the two delays: a match means this channel's pattern is
+        // the reference's.
         let mut same = 1u8 << reference;
-        for n in bits(aligned) {
-            let (Some(slot), Some(ring)) = (patterns.get_mut(n), self.rings.get(n)) else {
-                continue;
-            };
-            if n == reference {
-                *slot = Some(ref_pattern);
-                continue;
-            }
-            let d = delay(n);
-            // Same centres shifted by the whole samples between the two channels: a
-            // match means this channel's pattern is the reference's.
-            let rel = (d - ref_delay + HALF as i32) >> FRAC;
-            *slot = Some(if ring.agrees(&self.centres, rel) {
+        for n in bits(others) {
+            let rel = (delay(n) - ref_delay + HALF as i32) >> FRAC;
+            if self
+                .rings
+                .get(n)
+                .is_some_and(|r| r.agrees(&self.centres, rel))
+            {
                 same |= 1 << n;
-                ref_pattern
-            } else {
-                ring.gather::<false>(
-                    &mut self.table,
-                    start.wrapping_add(d as u32).wrapping_add(half_bit),
-                    ratio as u32,
-                    &mut Centres::default(),
-                )
-            });
+            }
         }
+        // The ones that differ are gathered in full at their own delay (only their
+        // entries of `patterns` are read; none in the steady state, which then
+        // spares clearing them).
+        let differ = aligned & !same;
+        let gathered;
+        let patterns = if differ == 0 {
+            &[0; CHANNELS]
+        } else {
+            let mut p = [0u128; CHANNELS];
+            for n in bits(differ) {
+                if let (Some(slot), Some(ring)) = (p.get_mut(n), self.rings.get(n)) {
+                    *slot = ring.gather::<false>(
+                        &mut self.table,
+                        start.wrapping_add(delay(n) as u32).wrapping_add(half_bit),
+                        ratio as u32,
+                        &mut Centres::default(),
+                    );
+                }
+            }
+            gathered = p;
+            &gathered
+        };
         // The channels that matched the reference hold one pattern, read right if
         // any of them confirms the timing at its own delay (the reference first; a
         // noisy edge on one of them costs nothing); the others are confirmed on
@@ -663,8 +726,8 @@ impl HansRx {
         {
             confirmed = same;
         }
-        for n in bits(aligned & !same) {
-            if let Some(&Some(p)) = patterns.get(n) {
+        for n in bits(differ) {
+            if let Some(&p) = patterns.get(n) {
                 if self.confirmed(n, start, delay(n), ratio, p) {
                     confirmed |= 1 << n;
                 }
@@ -678,7 +741,7 @@ impl HansRx {
                 sink(e);
             }
         };
-        let verified = self.evaluate(&patterns, aligned, same, confirmed, ref_pattern, &mut gated);
+        let verified = self.evaluate(patterns, aligned, same, confirmed, ref_pattern, &mut gated);
         // A young lock learns phase and rate from the verified reference's mid-pair
         // edges (`timing::YOUNG`).
         if let (true, Some(ring)) = (
@@ -690,6 +753,33 @@ impl HansRx {
             self.timing.refine(&p);
         }
         self.pending = Some((verified, same));
+    }
+
+    /// Aligns the channels of `mask` (used, not aligned) at this frame's start edge
+    /// if they have one there; returns `aligned` with those that did, their delays
+    /// in `delays`.
+    #[inline(never)]
+    fn align(&mut self, mask: u8, aligned: u8, delays: &mut [i32; CHANNELS]) -> u8 {
+        let (start, ratio) = (self.timing.start, self.timing.ratio);
+        let mut aligned = aligned;
+        for n in bits(mask) {
+            let (Some(ch), Some(ring), Some(d)) = (
+                self.channels.get_mut(n),
+                self.rings.get(n),
+                delays.get_mut(n),
+            ) else {
+                continue;
+            };
+            if let Some(e) = Channel::edge(ring, start, ratio) {
+                ch.align(diff(e, start));
+            }
+            if let Some(delay) = ch.delay {
+                *d = delay;
+                aligned |= 1 << n;
+            }
+        }
+        self.late = self.latest();
+        aligned
     }
 
     /// True when channel `n`'s start edges of this frame (at `start` plus its
@@ -734,10 +824,11 @@ impl HansRx {
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that
-    /// verified.
+    /// verified. `present`: the channels with a pattern; those of `same` hold
+    /// `ref_pattern`, the others theirs in `patterns`.
     fn evaluate(
         &mut self,
-        patterns: &[Option<u128>; CHANNELS],
+        patterns: &[u128; CHANNELS],
         present: u8,
         same: u8,
         confirmed: u8,
@@ -748,7 +839,7 @@ impl HansRx {
         // The steady state: every used channel holds the reference's pattern, its
         // timing confirmed, and it passed. Every channel verified that one frame, so
         // every mode publishes it (what the general path below concludes too).
-        if same & confirmed == self.used && present == self.used {
+        if same & confirmed == self.used && present == self.used && self.shortcuts() {
             if let Ok(f) = ref_decoded {
                 for n in bits(present) {
                     if let (Some(stats), Some(ch)) =
@@ -764,8 +855,9 @@ impl HansRx {
         }
         let mut verified: [Option<Frame>; CHANNELS] = [None; CHANNELS];
         let mut ok = 0u8;
+        let mut unaligned = false;
         for n in bits(present) {
-            let (Some(Some(p)), Some(stats), Some(ch)) = (
+            let (Some(p), Some(stats), Some(ch)) = (
                 patterns.get(n),
                 self.stats.get_mut(n),
                 self.channels.get_mut(n),
@@ -798,6 +890,7 @@ impl HansRx {
                     // A channel that keeps failing is taken to be misaligned (a
                     // delay measured on a glitch): it aligns again from scratch.
                     if ch.failures >= self.timing.relock_after() && ch.unalign() {
+                        unaligned = true;
                         stats.resyncs = stats.resyncs.wrapping_add(1);
                         sink(RxEvent::Fault {
                             channel: Some(number(n)),
@@ -807,14 +900,15 @@ impl HansRx {
                 }
             }
         }
+        if unaligned {
+            self.late = self.latest();
+        }
         // An unconfirmed channel counts as failed: it votes zeros, as a dead line.
-        let all = same & confirmed == self.used;
-        let get = |c: u8| {
-            usize::from(c)
-                .checked_sub(1)
-                .filter(|&i| confirmed & (1 << i) != 0)
-                .and_then(|i| patterns.get(i).copied().flatten())
-                .unwrap_or(0)
+        let all = same & confirmed == self.used && self.shortcuts();
+        let get = |c: u8| match usize::from(c).checked_sub(1) {
+            Some(i) if confirmed & present & same & (1 << i) != 0 => ref_pattern,
+            Some(i) if confirmed & present & (1 << i) != 0 => patterns.get(i).copied().unwrap_or(0),
+            _ => 0,
         };
         match self.mode {
             Mode::Normal { channel } => {
@@ -890,17 +984,48 @@ impl HansRx {
         // untrusted.
         let mut errs = [0i32; CHANNELS];
         self.frames = self.frames.wrapping_add(1);
-        let settled = bits(same & !(1 << self.reference))
-            .filter(|&n| self.channels.get(n).is_some_and(Channel::settled))
-            .fold(0u8, |m, n| m | 1 << n);
+        let reference = 1u8 << self.reference;
         let skip = if self.frames.is_multiple_of(REMEASURE) {
             0
         } else {
-            settled
+            let mut settled = 0u8;
+            for (n, ch) in self.channels.iter().enumerate() {
+                if ch.settled() {
+                    settled |= 1 << n;
+                }
+            }
+            settled & same & !reference
         };
         let mut found = self.edges(self.used & !skip, pred, &mut errs, sink);
-        if found & verified & (1 << self.reference) == 0 {
+        if found & verified & reference == 0 {
             found |= self.edges(skip, pred, &mut errs, sink);
+        }
+        // The steady state: only the reference was measured, and it verified. It
+        // alone is trusted, so the consensus is its own edge and its deviation from
+        // it zero (what the general path below concludes too).
+        if found == reference && verified & reference != 0 && self.shortcuts() {
+            let err = errs.get(self.reference).copied().unwrap_or(0);
+            if !self.timing.advance(err) {
+                self.lose(sink);
+                return;
+            }
+            if let (Some(ch), Some(stats)) = (
+                self.channels.get_mut(self.reference),
+                self.stats.get_mut(self.reference),
+            ) {
+                if let Some(d) = ch.delay {
+                    if !ch.track(d) {
+                        stats.resyncs = stats.resyncs.wrapping_add(1);
+                        sink(RxEvent::Fault {
+                            channel: Some(number(self.reference)),
+                            kind: FaultKind::Resync,
+                        });
+                        self.late = self.latest();
+                    }
+                }
+            }
+            self.dry = 0;
+            return;
         }
         // Channels that just verified are trusted; the others only when none did.
         // The upper median shrugs off a glitch on a minority of channels (a glitch
@@ -948,6 +1073,7 @@ impl HansRx {
                 });
             }
         }
+        self.late = self.latest();
         // Keep the reference while it verifies and has its edge; otherwise the first
         // channel that does, or at least has an edge.
         if trusted & (1 << self.reference) == 0 {
@@ -977,6 +1103,7 @@ impl HansRx {
     ) -> u8 {
         let ratio = self.timing.ratio;
         let mut found = 0u8;
+        let mut lost = false;
         for n in bits(mask) {
             let (Some(ch), Some(ring), Some(stats), Some(err)) = (
                 self.channels.get_mut(n),
@@ -994,6 +1121,7 @@ impl HansRx {
                 }
                 None => {
                     ch.unalign();
+                    lost = true;
                     stats.resyncs = stats.resyncs.wrapping_add(1);
                     sink(RxEvent::Fault {
                         channel: Some(number(n)),
@@ -1001,6 +1129,9 @@ impl HansRx {
                     });
                 }
             }
+        }
+        if lost {
+            self.late = self.latest();
         }
         found
     }
@@ -1059,6 +1190,7 @@ impl HansRx {
                 });
             }
         }
+        self.late = self.latest();
         self.missing(self.used, sink);
     }
 }

@@ -527,4 +527,5 @@ proptest! {
 mod dead;
 mod periods;
 mod ring;
+mod steady;
 mod tail;
