@@ -27,10 +27,15 @@
 //!    channel, it is decoded in one go and published right away if its timing is
 //!    **confirmed**: the channel's start edge and the next frame's lie within 3/8
 //!    of a bit (centred on the samples such an edge can give) of where the bit
-//!    timing the pattern was read with puts them. Else the
+//!    timing the pattern was read with puts them, and, once the lock has settled,
+//!    the frame's last 8 mid-pair edges (every complement pair changes level in
+//!    its middle) lie on average within a quarter bit of where it puts them, their
+//!    deviations' mean size within 3/8 ([`confirm`]). Else the
 //!    phase may have drifted within the frame (a false or missing start edge moved
 //!    the tracking), and a tail read a bit off is random content whose complement
-//!    pairs pass at 2^-n: the channel counts a check failure instead. The
+//!    pairs pass at 2^-n: the channel counts a check failure instead. Channels
+//!    that matched the reference centre for centre hold one pattern and are
+//!    confirmed together by the first of them whose edges all pass. The
 //!    **reference** channel's 125 bit centres are gathered two windows (of 32
 //!    samples) at a time with a per-phase table and four multiplications per window
 //!    ([`table`]);
@@ -116,11 +121,14 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 1 780 instructions per frame for one channel at 3x (1 870 at 4x), 2 690
-//! for vote3 and 3 170 for vote5 / super (5 channels, 3x); as the firmware feeds
-//! it (40 MHz, 64-word chunks) 1 830 in normal mode and 3 290 in super mode, once
-//! a lock has settled: the young lock ([`phase`], its first [`timing::YOUNG`]
-//! frames) costs 5 780 in super mode as the firmware feeds it (bench row "young
+//! About 1 930 instructions per frame for one channel at 3x (2 080 at 4x), 2 910
+//! for vote3 and 3 390 for vote5 / super (5 channels, 3x); as the firmware feeds
+//! it (40 MHz, 64-word chunks) 2 050 in normal mode and 3 520 in super mode, once
+//! a lock has settled (the tail confirmation, [`confirm`], adds 150..230: about 230
+//! in `confirmed` for the reference's 8 last mid-pair edges, the rest the code
+//! around the call; before it 1 780 / 1 870 / 2 690 / 3 170, firmware 1 830 /
+//! 3 290, young lock 5 780): the young lock ([`phase`], its first [`timing::YOUNG`]
+//! frames) costs 5 980 in super mode as the firmware feeds it (bench row "young
 //! lock", frames 4..36; 8 530 before `phase::mid_pairs` was made a register-only
 //! loop of ~28 instructions an edge): ~1 700 measuring the 61 mid-pair edges,
 //! ~320 the fit's 64-bit divisions, ~430 the frame step's and `Timing::advance`'s
@@ -139,7 +147,7 @@
 //! for table entries met for the first time, which a running line stops paying
 //! once its phases have all been seen; ~950 at 40 MHz, where the step loop
 //! spills), its decode 125, the start-edge
-//! confirmation ~80, the timing filter ~70, copying the rings (one ring: ~5 per
+//! confirmation ~80 and the tail confirmation ~230, the timing filter ~70, copying the rings (one ring: ~5 per
 //! word with the per-call overhead, ~130 per frame; all five in vote5 / super: one
 //! pass, ~2.5 per word and channel plus ~85 per call, ~430 per frame for all
 //! five), per other channel ~12 per window for the centre compare (~200), and
@@ -162,6 +170,7 @@
 pub mod channel;
 pub mod gap;
 pub mod hunt;
+pub mod confirm;
 pub mod modes;
 pub mod phase;
 pub mod ring;
@@ -725,14 +734,17 @@ impl HansRx {
         // noisy edge on one of them costs nothing); the others are confirmed on
         // their own.
         let mut confirmed = 0u8;
-        if self.confirmed(reference, start, ref_delay, ratio)
-            || bits(same & !(1 << reference)).any(|n| self.confirmed(n, start, delay(n), ratio))
+        if self.confirmed(reference, start, ref_delay, ratio, ref_pattern)
+            || bits(same & !(1 << reference))
+                .any(|n| self.confirmed(n, start, delay(n), ratio, ref_pattern))
         {
             confirmed = same;
         }
-        for n in bits(aligned & !same) {
-            if self.confirmed(n, start, delay(n), ratio) {
-                confirmed |= 1 << n;
+        for n in bits(differ) {
+            if let Some(&p) = patterns.get(n) {
+                if self.confirmed(n, start, delay(n), ratio, p) {
+                    confirmed |= 1 << n;
+                }
             }
         }
         // A young lock decodes and tracks, but publishes nothing yet (acquisition,
@@ -787,13 +799,25 @@ impl HansRx {
     /// True when channel `n`'s start edges of this frame (at `start` plus its
     /// `delay`) and of the next one (a frame later by the bit timing the pattern
     /// was read with) both lie within [`confirm_window`] of where that timing puts
-    /// them. Only then were the frame's bits read at their centres from the first
-    /// to the last: a false or missing start edge that moved the tracking leaves
-    /// the phase drifting within the frame, and a tail read a bit off is random
-    /// content whose complement pairs pass at 2^-n (README "Known limits"). The
-    /// start edge follows the stop field and the next falling edge comes two bits
-    /// later, so no other edge of a good line lies in either window.
-    fn confirmed(&self, n: usize, start: u32, delay: i32, ratio: i32) -> bool {
+    /// them, and the frame's last mid-pair edges, measured with `pattern` (read at
+    /// this channel's timing, or the reference's when the channel matched it
+    /// centre for centre), on average within [`confirm::tail_window`] (a quarter
+    /// bit; their deviations' mean size within 3/8, [`confirm::tail`]). Only then were the frame's bits read at their
+    /// centres from the first to the last: a false or missing start edge that
+    /// moved the tracking, or a phase that drifted or jumped within the frame,
+    /// leaves a tail read a bit off, random content whose complement pairs pass at
+    /// 2^-n (README "Known limits"). The start edge follows the stop field and the
+    /// next falling edge comes two bits later, so no other edge of a good line
+    /// lies in either start-edge window. The start edges are checked first: they
+    /// are cheaper and fail more often. The tail is checked once the lock has
+    /// settled ([`timing::SETTLED`]), i.e. on every frame that can be published:
+    /// before, a verified frame only feeds the young lock's fit, and the first
+    /// frames of a lock (its rate measured over one frame, up to a sample off at
+    /// the tail) are exactly those whose mid-pair edges fix the rate. Checking
+    /// one channel of those that matched the reference suffices for all of them:
+    /// they hold its samples at every centre (shifted by whole samples), so edges
+    /// where one member's timing puts them vouch for the pattern they share.
+    fn confirmed(&self, n: usize, start: u32, delay: i32, ratio: i32, pattern: u128) -> bool {
         let Some(ring) = self.rings.get(n) else {
             return false;
         };
@@ -810,7 +834,7 @@ impl HansRx {
                 at.wrapping_add(w).wrapping_add(up),
             )
             .is_some()
-        })
+        }) && (!self.timing.settled() || confirm::tail(ring, head, ratio, pattern))
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that
@@ -1186,7 +1210,8 @@ impl HansRx {
 }
 
 /// Half-width (Q16 samples) of the windows in which [`HansRx::confirmed`] wants a
-/// frame's start edge and its successor's: 3/8 of a bit. A good line's edge lies
+/// frame's start edge and its successor's: 3/8 of a bit (the frame's tail is
+/// checked on its mid-pair edges, [`confirm::tail_window`]). A good line's edge lies
 /// within its jitter plus half a sample (1/6 bit at 3x) of a settled prediction,
 /// so up to about +-20 % jitter costs nothing. Half a bit let one wrong frame in
 /// 250 000 through in the HANS campaign (normal mode, +-15 % jitter, edge faults):

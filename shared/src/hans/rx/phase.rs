@@ -38,7 +38,7 @@ use super::ring::{Ring, FRAC, HALF};
 use crate::hans::FRAME_BITS;
 
 /// Pairs per frame: the start pair and 3 x 20 data pairs.
-const PAIRS: u32 = 61;
+pub(super) const PAIRS: u32 = 61;
 /// Bits per frame, the shift of the bit index from one frame to the next.
 const BITS: i64 = FRAME_BITS as i64;
 
@@ -99,17 +99,9 @@ impl Points {
 /// step: a short loop whose state stays in registers (~30 instructions an edge
 /// on the M7, where the per-edge residuals, unrolled, took ~67).
 pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
-    let ratio = ratio as u32;
-    let half = ratio / 2;
-    let step = ratio.wrapping_mul(2);
+    let mut edges = PairEdges::new(start, ratio, 0);
     // Edge of pair 0 (bit boundary 1); pair i's is `step` further per pair.
-    let at0 = start.wrapping_add(ratio);
-    // Window of pair i: the samples from `at - half` (rounded up) to before
-    // `at + half`, both bounds kept rounded-up-to-be (`+ 2^16 - 1`) so a shift
-    // gives the sample.
-    let round = (1 << FRAC) - 1;
-    let mut lo_q = at0.wrapping_sub(half).wrapping_add(round);
-    let mut hi_q = at0.wrapping_add(half).wrapping_add(round);
+    let at0 = start.wrapping_add(ratio as u32);
     // The pairs' first bits, left-aligned: the line's first bit at bit 127.
     let p = pattern << 3;
     let words = [
@@ -124,19 +116,9 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
     for (w, count) in words {
         let mut bits = w;
         for _ in 0..count {
-            let lo = lo_q >> FRAC;
-            let n = (hi_q >> FRAC).wrapping_sub(lo) & 0xFFFF;
-            // Window `lo >> 5` and the next (`window` takes them modulo the ring).
-            let (j, s) = (lo >> 5, lo & 31);
-            let next = lo_q.wrapping_add(1 << (FRAC + 5)) >> (FRAC + 5);
-            let x = ring.window(j) << s | (ring.window(next) >> 1) >> (31 - s);
-            // Samples at the pair's first level, counted from the window's start.
-            let first = 0u32.wrapping_sub(bits >> 31);
-            let c = lo.wrapping_add((x ^ first).leading_zeros().min(n));
+            let c = edges.count(ring, bits);
             c_sum = c_sum.wrapping_add(c);
             kc_sum = kc_sum.wrapping_add(k.wrapping_mul(c));
-            lo_q = lo_q.wrapping_add(step);
-            hi_q = hi_q.wrapping_add(step);
             k += 2;
             bits <<= 2;
             // Keeps this a loop: LLVM unrolls loops for M-class cores, and the
@@ -148,6 +130,7 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
     }
     // Σ(edge_i - at_i) and Σk_i·(edge_i - at_i) with k_i = 2i + 1, i = 0..61:
     // Σk_i = 3 721, Σi = 1 830, Σi·k_i = 2·Σi² + Σi = 149 450.
+    let step = edges.step;
     let r_sum = (c_sum << FRAC)
         .wrapping_sub(PAIRS.wrapping_mul(HALF))
         .wrapping_sub(PAIRS.wrapping_mul(at0))
@@ -160,6 +143,81 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
     // ratio up to 4.2), so the sums fit i32: 61 * 2^18 and 3 721 * 2^18 < 2^31
     // (and for any other input they are what the wrapping per-point sums were).
     points(r_sum as i32, kr_sum as i32)
+}
+
+/// Measures a frame's mid-pair edges one pair after the other (the module docs,
+/// "Measuring an edge"): shared by the young lock's fit ([`mid_pairs`]) and the
+/// tail confirmation ([`super::confirm`]). Register-only state, inlined into the
+/// callers' loops.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PairEdges {
+    /// The next pair's window: the samples from `at - ratio/2` (rounded up) to
+    /// before `at + ratio/2`, both bounds kept rounded-up-to-be (`+ 2^16 - 1`) so
+    /// a shift gives the sample.
+    lo_q: u32,
+    hi_q: u32,
+    /// Two bits (Q16): from one pair's edge to the next.
+    step: u32,
+}
+
+impl PairEdges {
+    /// The edges of pairs `first`, `first + 1`, ... of the frame whose start edge
+    /// is at `start` (Q16, the channel's own) with `ratio` (Q16) samples per bit:
+    /// pair `i`'s edge is expected at bit boundary `2i + 1`, its window is the bit
+    /// time centred there.
+    #[inline(always)]
+    pub(super) fn new(start: u32, ratio: i32, first: u32) -> PairEdges {
+        let ratio = ratio as u32;
+        let half = ratio / 2;
+        let step = ratio.wrapping_mul(2);
+        let at = start
+            .wrapping_add(ratio)
+            .wrapping_add(first.wrapping_mul(step));
+        let round = (1 << FRAC) - 1;
+        PairEdges {
+            lo_q: at.wrapping_sub(half).wrapping_add(round),
+            hi_q: at.wrapping_add(half).wrapping_add(round),
+            step,
+        }
+    }
+
+    /// The next pair's edge as a sample count `c` (the edge lies half a sample
+    /// before sample `c`): its window's samples at the pair's first level, which
+    /// is bit 31 of `bits`, counted from the window's start (an edge outside the
+    /// window saturates at its border); then moves on to the pair after it.
+    #[inline(always)]
+    pub(super) fn count(&mut self, ring: &Ring, bits: u32) -> u32 {
+        let lo = self.lo_q >> FRAC;
+        let n = (self.hi_q >> FRAC).wrapping_sub(lo) & 0xFFFF;
+        self.hi_q = self.hi_q.wrapping_add(self.step);
+        lo.wrapping_add(self.run(ring, bits).min(n))
+    }
+
+    /// [`PairEdges::count`] without the window's end: the samples at the first
+    /// level from the window's start up to the next level change, however far (at
+    /// most 32). The same count for an edge inside the window, and a larger one
+    /// for an edge beyond it: a check that wants edges near their place (the
+    /// tail confirmation) needs no saturation, and skips its per-edge cost.
+    #[inline(always)]
+    pub(super) fn count_on(&mut self, ring: &Ring, bits: u32) -> u32 {
+        let lo = self.lo_q >> FRAC;
+        lo.wrapping_add(self.run(ring, bits))
+    }
+
+    /// The samples at the level of bit 31 of `bits` from the next window's start
+    /// (at most 32); moves the window's start on to the next pair.
+    #[inline(always)]
+    fn run(&mut self, ring: &Ring, bits: u32) -> u32 {
+        let lo = self.lo_q >> FRAC;
+        // Window `lo >> 5` and the next (`window` takes them modulo the ring).
+        let (j, s) = (lo >> 5, lo & 31);
+        let next = self.lo_q.wrapping_add(1 << (FRAC + 5)) >> (FRAC + 5);
+        let x = ring.window(j) << s | (ring.window(next) >> 1) >> (31 - s);
+        // Samples at the pair's first level, counted from the window's start.
+        let first = 0u32.wrapping_sub(bits >> 31);
+        self.lo_q = self.lo_q.wrapping_add(self.step);
+        (x ^ first).leading_zeros()
+    }
 }
 
 /// The points of a frame's 61 pairs with residual sums `r` and `kr`: every pair

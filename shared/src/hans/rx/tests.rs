@@ -530,3 +530,4 @@ mod hunt;
 mod periods;
 mod ring;
 mod steady;
+mod tail;

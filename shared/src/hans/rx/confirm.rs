@@ -1,0 +1,329 @@
+//! Confirmation of a frame's tail on its last mid-pair edges, before the frame is
+//! published ([`super::HansRx`]'s `confirmed`, with the start-edge windows).
+//!
+//! # Why
+//! A frame is read at the bit centres its timing puts 0.5 to 124.5 bits after its
+//! start edge. The start-edge confirmation checks that timing at two single edges:
+//! the frame's own and its successor's, each within 3/8 of a bit. A tail read a
+//! third of a bit or more off (the phase drifted, or jumped, within the frame)
+//! still passes there when the successor's edge is jittered towards the
+//! prediction, and its centres then lie near bit boundaries: random content whose
+//! complement pairs pass at 2^-n. Small changes to the tracking made the HANS
+//! campaign forward 13 to 14 such frames in 250 000 (README "Known limits").
+//!
+//! Every complement pair changes level in its middle (spec "数据传输协议", sender
+//! item 2), so the last [`TAIL_PAIRS`] pairs give that many edges at known bit
+//! boundaries whatever the data, in the part of the frame where a rate error has
+//! moved the phase furthest. They are measured as the young lock's fit measures
+//! them (`phase::PairEdges`: from the start of the bit time centred on the
+//! boundary, the level before the edge taken from the pattern as read; not
+//! saturated at the window's end, which only makes an edge further off count
+//! further off, and saves the bound per edge) and two means of
+//! their deviations from where the timing puts them are bounded: the **mean
+//! deviation** within [`tail_window`], a quarter bit (a phase error), and the
+//! **mean size** of the deviations within 3/8 bit (pairs read with the wrong
+//! level, or a tail read partly one bit late and partly right, whose deviations
+//! have both signs and cancel in the mean).
+//!
+//! # Why means, and why a quarter bit
+//! A single edge of a good line already lies up to its jitter (a quarter bit at
+//! ±25 %) plus the half-sample measurement step (a sixth of a bit at 3x) off, so
+//! any per-edge bound that sees a quarter-bit phase error would reject clean
+//! frames. The mean of 8 edges has its jitter (σ about 0.17 bit a single edge at
+//! ±25 % and 3x, uniform jitter and quantisation) down to about 0.06 bit, so a
+//! quarter bit is about four of those beyond the tracking error (~0.03 bit); a
+//! good line's mean size is about 0.14 bit there. A tail read a third of a bit
+//! or more off (where ±15 % jitter starts to misread it) is out.
+//!
+//! # What it cannot see
+//! A slip of most of a bit over a tail of repeated data bits (`0 1 0 1 ...`: an
+//! edge every bit) reads valid pairs whose edges lie near where the timing puts
+//! them; a drift that large also moves the successor's start edge by most of a
+//! bit, which the start-edge window rejects, but a transient excursion of the
+//! line's phase that the stop field takes back up is invisible to both. At 4x
+//! (50 MHz) two bits are eight samples, so on a line without jitter every
+//! checked edge is measured with the same rounding, up to half a sample (an
+//! eighth of a bit) towards the timing: a tail read 0.35 bit off can measure a
+//! quarter bit and pass there (with jitter the roundings differ and average out).
+//! Measuring against the samples the bits were read at (the rounded centres)
+//! instead of the exact boundaries would see that margin, but at 3x it charges a
+//! clean line up to half a sample of centre rounding and lost frames at ±20 %
+//! jitter (`limits_over_many_locks`, tried and dropped).
+//!
+//! # Cost
+//! One edge is ~21 instructions on the M7 (two window loads, a funnel shift, a
+//! count, two sums), ~230 per checked channel and frame with the set-up and the
+//! start-edge part `HansRx::confirmed` shares (`cargo xtask profile`); the channels that
+//! matched the reference centre for centre hold its pattern and share one check
+//! (the first of them that confirms, normally the reference).
+
+use super::phase::{PairEdges, PAIRS};
+use super::ring::{Ring, FRAC, HALF};
+
+/// Mid-pair edges checked at the end of every frame: the data pairs of DATA3's
+/// last 8 bits. Eight bring the mean's jitter to a quarter of a single edge's
+/// (see the module docs) at ~21 instructions each; the 8 edges span the last 16
+/// bits, where a rate error has moved the phase as far as at the stop bits.
+pub const TAIL_PAIRS: u32 = 8;
+
+/// The first pair checked.
+const FIRST: u32 = PAIRS - TAIL_PAIRS;
+
+// The checked pairs' first bits lie in the pattern's low 32 bits (pair `i`'s first
+// bit is pattern bit `124 - 2i`), so one `u32` holds them.
+const _: () = assert!(124 - 2 * FIRST <= 31);
+
+/// Largest mean deviation (Q16 samples) of the last [`TAIL_PAIRS`] mid-pair edges
+/// from where the timing puts them: a quarter of a bit (0.75 to 1 sample at 3x to
+/// 4x); their mean size may be half as much again (3/8 bit). A good line's mean
+/// lies within about 0.06 bit plus the tracking error at ±25 % jitter, its mean
+/// size near 0.14 bit (module docs).
+pub fn tail_window(ratio: i32) -> u32 {
+    (ratio / 4) as u32
+}
+
+/// True when the last [`TAIL_PAIRS`] mid-pair edges of the frame whose start edge
+/// is at `head` (Q16, the channel's own: shared start plus its delay), read with
+/// `ratio` (Q16 samples per bit) on `ring`, lie on average within
+/// [`tail_window`] of where that timing puts them, and their deviations'
+/// mean size within 1.5 times that. `pattern` is the frame's pattern as read
+/// (first bit at bit 124): it says which level comes before each edge; a pair
+/// read with the wrong level measures its edge half a bit early (at its window's
+/// start), an edge beyond its window where the level really changes (up to 32
+/// samples on).
+pub fn tail(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> bool {
+    let mut edges = PairEdges::new(head, ratio, FIRST);
+    // Where the timing puts pair FIRST's edge (bit boundary 2 FIRST + 1), plus
+    // the half sample of the measuring convention, and each later one two bits
+    // further.
+    let step = (ratio as u32).wrapping_mul(2);
+    let mut at = head
+        .wrapping_add((ratio as u32).wrapping_mul(2 * FIRST + 1))
+        .wrapping_add(HALF);
+    // Pair FIRST's first bit (pattern bit 124 - 2 FIRST) at bit 31, the next
+    // pairs' every two bits below it.
+    let mut bits = (pattern as u32) << (2 * FIRST - 93);
+    // Sums of the edges' deviations and of their sizes (Q16 samples; each below
+    // 32 samples, so the sums fit).
+    let (mut sum, mut spread) = (0i32, 0u32);
+    for _ in 0..TAIL_PAIRS {
+        let r = (edges.count_on(ring, bits) << FRAC).wrapping_sub(at) as i32;
+        sum = sum.wrapping_add(r);
+        spread = spread.wrapping_add(r.unsigned_abs());
+        at = at.wrapping_add(step);
+        bits <<= 2;
+    }
+    let w = tail_window(ratio);
+    sum.unsigned_abs() <= TAIL_PAIRS.wrapping_mul(w)
+        && spread <= TAIL_PAIRS.wrapping_mul(w.wrapping_add(w / 2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::hans::Frame;
+    use proptest::prelude::*;
+
+    const Q: f64 = 65536.0;
+
+    fn q(v: f64) -> i32 {
+        (v * Q).round() as i32
+    }
+
+    /// Samples of a line that idles high, then sends `pattern` with bit boundary
+    /// `k` at `edge(k)` (samples), written to a ring from stream word 0.
+    fn ring_of(pattern: u128, edge: impl Fn(usize) -> f64) -> Ring {
+        let bits: Vec<bool> = (0..125).rev().map(|i| (pattern >> i) & 1 == 1).collect();
+        let level = |t: f64| {
+            if t < edge(0) || t >= edge(125) {
+                return true;
+            }
+            let b = (0..125).rfind(|&b| t >= edge(b)).unwrap_or(0);
+            bits[b]
+        };
+        let words: Vec<u16> = (0..64)
+            .map(|w| {
+                (0..16).fold(0u16, |acc, i| {
+                    acc << 1 | u16::from(level(f64::from(w * 16 + i)))
+                })
+            })
+            .collect();
+        let mut ring = Ring::default();
+        ring.write(0, &words);
+        ring
+    }
+
+    /// The start edge the receiver measures for a line edge at `t` (samples): half a
+    /// sample before the first sample at the new level.
+    fn measured(t: f64) -> u32 {
+        q(t.ceil() - 0.5) as u32
+    }
+
+    /// The pattern the receiver reads from `ring` with that timing: the sample
+    /// nearest each bit centre (first bit at bit 124).
+    fn read(ring: &Ring, head: u32, ratio: i32) -> u128 {
+        (0..125u32).fold(0u128, |p, k| {
+            let s = head
+                .wrapping_add(ratio as u32 / 2 + HALF)
+                .wrapping_add(k * ratio as u32)
+                >> FRAC;
+            p << 1 | u128::from((ring.window(s / 32) >> (31 - s % 32)) & 1)
+        })
+    }
+
+    fn pattern() -> u128 {
+        Frame::new(0x5A3C1, 0xF0F0F, 0x12345).unwrap().encode()
+    }
+
+    /// The mean deviation and the mean size of the deviations (bits) `tail`
+    /// compares, recomputed edge by edge in f64 from the samples: each checked
+    /// pair's edge (half a sample before the first sample at the second level
+    /// from the start of the bit time centred on the boundary) against that
+    /// boundary.
+    fn mean_offset(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> (f64, f64) {
+        let sample = |s: i64| {
+            let s = s.rem_euclid(1024) as u32;
+            (ring.window(s / 32) >> (31 - s % 32)) & 1 == 1
+        };
+        let (head, ratio) = (f64::from(head) / Q, f64::from(ratio) / Q);
+        let (mut sum, mut spread) = (0.0, 0.0);
+        for i in FIRST..PAIRS {
+            let at = head + f64::from(2 * i + 1) * ratio;
+            let lo = (at - ratio / 2.0).ceil() as i64;
+            let first = (pattern >> (124 - 2 * i)) & 1 == 1;
+            // Not bounded by the window's end (`PairEdges::count_on`): up to 32.
+            let c = (lo..lo + 32)
+                .find(|&s| sample(s) != first)
+                .unwrap_or(lo + 32);
+            let d = c as f64 - 0.5 - at;
+            sum += d;
+            spread += d.abs();
+        }
+        let bits = f64::from(TAIL_PAIRS) * ratio;
+        (sum / bits, spread / bits)
+    }
+
+    #[test]
+    fn a_frame_where_its_timing_puts_it_is_confirmed() {
+        for ratio in [3.0, 3.2, 3.75, 4.0] {
+            for t0 in [20.0, 20.3, 20.5, 20.9] {
+                let ring = ring_of(pattern(), |k| t0 + k as f64 * ratio);
+                let (head, r) = (measured(t0), q(ratio));
+                assert_eq!(read(&ring, head, r), pattern());
+                assert!(tail(&ring, head, r, pattern()), "{ratio} {t0}");
+            }
+        }
+    }
+
+    #[test]
+    fn a_tail_read_near_its_edges_is_not() {
+        // The line's edges from bit 100 on are moved late (or early) against the
+        // timing, the start edge is where it should be; the pattern is what the
+        // receiver reads there. 0.45 bit puts the read samples within 0.05 bit
+        // (plus their rounding, half a sample) of an edge, or past it: no pattern
+        // read there may pass both its checks and this one. A tenth of a bit
+        // leaves them well inside their bits: confirmed. The second frame's DATA3
+        // ends in 16 zeros (pairs `0 1`: a square wave), so that a tail read a bit
+        // late still holds valid pairs.
+        let square = Frame::new(0x5A3C1, 0xF0F0F, 0x10000).unwrap().encode();
+        for sent in [pattern(), square] {
+            for ratio in [3.0, 3.2, 3.75, 4.0] {
+                // Start edges half a sample (±0.1) before a sample: measured where
+                // they are, so the shift is the timing's error.
+                for t0 in [20.43, 20.52, 20.58] {
+                    for shift in [-0.6, -0.45, -0.1, 0.1, 0.45, 0.6] {
+                        let ring = ring_of(sent, |k| {
+                            t0 + k as f64 * ratio + if k >= 100 { shift * ratio } else { 0.0 }
+                        });
+                        let (head, r) = (measured(t0), q(ratio));
+                        let got = read(&ring, head, r);
+                        let at = format!("{ratio} {t0} {shift}");
+                        if f64::abs(shift) < 0.2 {
+                            assert_eq!(got, sent, "{at}");
+                            assert!(tail(&ring, head, r, got), "{at}");
+                        } else {
+                            let passed = Frame::decode(got).is_ok() && tail(&ring, head, r, got);
+                            assert!(!passed, "{at}");
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_rate_error_shows_at_the_tail() {
+        // Timing 3.2 samples a bit, the line 3.2 * (1 ± 0.4 %): 0.46 bit off on
+        // average over the checked pairs; 0.1 % (0.11 bit) is fine.
+        let square = Frame::new(0x5A3C1, 0xF0F0F, 0x10000).unwrap().encode();
+        for (rate, ok) in [
+            (0.004, false),
+            (-0.004, false),
+            (0.001, true),
+            (-0.001, true),
+        ] {
+            let ring = ring_of(square, |k| 20.5 + k as f64 * 3.2 * (1.0 + rate));
+            let (head, r) = (measured(20.5), q(3.2));
+            let got = read(&ring, head, r);
+            let passed = Frame::decode(got).is_ok() && tail(&ring, head, r, got);
+            assert_eq!(passed, ok, "{rate}");
+        }
+    }
+
+    #[test]
+    fn a_wrong_level_is_half_a_bit_off() {
+        // The checked pairs inverted in the pattern (DATA3's last 8 data bits and
+        // their complements, pattern bits 18..3): every checked pair's first level
+        // is wrong, so each edge reads at its window's start. Six of them wrong:
+        // deviations of half a bit and more on six of eight edges, out too.
+        let ring = ring_of(pattern(), |k| 20.0 + k as f64 * 3.5);
+        assert!(tail(&ring, measured(20.0), q(3.5), pattern()));
+        assert!(!tail(
+            &ring,
+            measured(20.0),
+            q(3.5),
+            pattern() ^ 0xFFFF << 3
+        ));
+        assert!(!tail(&ring, measured(20.0), q(3.5), pattern() ^ 0xFFF << 3));
+    }
+
+    #[test]
+    fn garbage_never_panics() {
+        let words: Vec<u16> = (0..64u16).map(|w| w.wrapping_mul(0x9E37)).collect();
+        let mut ring = Ring::default();
+        ring.write(0, &words);
+        for s in (0..70_000u32).step_by(997) {
+            for ratio in [0, -1, q(3.3), i32::MAX, i32::MIN] {
+                let _ = tail(&ring, s.wrapping_mul(40_503), ratio, u128::MAX);
+            }
+        }
+    }
+
+    proptest! {
+        /// The word-level count is the edge-by-edge mean, at any sampling phase, ratio,
+        /// timing error and jitter: the bound is the one the docs state.
+        #[test]
+        fn same_as_the_edge_by_edge_mean(
+            data in (0u32..1 << 20, 0u32..1 << 20, 0u32..1 << 20),
+            t0 in 1.0f64..400.0,
+            ratio in 2.9f64..4.2,
+            off in -1.0f64..1.0,
+            jitter in prop::collection::vec(-0.3f64..0.3, 126),
+        ) {
+            let Ok(frame) = Frame::new(data.0, data.1, data.2) else {
+                return Err(TestCaseError::fail("frame"));
+            };
+            let pattern = frame.encode();
+            let ring = ring_of(pattern, |k| t0 + (k as f64 + jitter[k]) * ratio);
+            let (head, r) = (q(t0 + off) as u32, q(ratio));
+            let (mean, spread) = mean_offset(&ring, head, r, pattern);
+            let got = tail(&ring, head, r, pattern);
+            // Away from the bounds by more than the Q16 rounding, the two agree.
+            let w = tail_window(r);
+            let (bound, wide) = (f64::from(w) / f64::from(r), f64::from(w + w / 2) / f64::from(r));
+            if (mean.abs() - bound).abs() > 1e-3 && (spread - wide).abs() > 1e-3 {
+                prop_assert_eq!(got, mean.abs() <= bound && spread <= wide, "{} {}", mean, spread);
+            }
+        }
+    }
+}
