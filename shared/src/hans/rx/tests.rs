@@ -306,6 +306,71 @@ fn gather_matches_bit_by_bit() {
     }
 }
 
+/// [`gather_matches_bit_by_bit`] at any ring position, rate, table rate within its
+/// slack and first centre: every frame bit is gathered (125 centres) and each one
+/// away from a sample boundary reads its sample. Found by a clean line at 3.17x
+/// that lost a frame: the last window's single entry counted one centre fewer than
+/// the pair entry before it had left for it, and the frame's last bit read 0.
+fn gather_reads_every_centre(ratio: u32, off: i32, first: u32, words: &[u16]) {
+    // Not the 1/8 sample of `gather_matches_bit_by_bit`: the table's error reaches
+    // ~0.2 sample at some phases (table.rs, "Two windows per entry").
+    const MARGIN: f64 = 0.25;
+    use super::ring::{Centres, Ring, RING_WORDS};
+    use super::table::Table;
+    let mut ring = Ring::default();
+    // The ring holds every window the frame touches, whatever `first`.
+    let base = (first >> 20).wrapping_sub(4);
+    for (k, chunk) in words.chunks(RING_WORDS / 2).enumerate() {
+        ring.write(base.wrapping_add((k * RING_WORDS / 2) as u32), chunk);
+    }
+    let mut table = Table::new(ratio as i32 + off);
+    let mut centres = Centres::default();
+    let got = ring.gather::<true>(&mut table, first, ratio, &mut centres);
+    let centre_count: u32 = centres.windows[..centres.count]
+        .iter()
+        .map(|[m, _]| m.count_ones())
+        .sum();
+    assert_eq!(centre_count, 125, "ratio {ratio} off {off} first {first}");
+    for b in 0..125u32 {
+        let pos = u64::from(first) + u64::from(b) * u64::from(ratio);
+        let frac = (pos & 0xFFFF) as f64 / 65536.0;
+        if !(MARGIN..=1.0 - MARGIN).contains(&frac) {
+            continue;
+        }
+        let s = (pos >> 16) as u32;
+        let want = (ring.window(s >> 5) >> (31 - (s & 31))) & 1;
+        assert_eq!(
+            (got >> (124 - b)) & 1,
+            u128::from(want),
+            "ratio {ratio} off {off} first {first} bit {b}"
+        );
+    }
+}
+
+#[test]
+fn gather_reads_the_last_centre_of_a_clean_3_17x_frame() {
+    let words: Vec<u16> = (0..super::ring::RING_WORDS)
+        .map(|k| (k as u16).wrapping_mul(0x9E37) ^ 0x5A5A)
+        .collect();
+    for off in (-85..=85).step_by(5) {
+        gather_reads_every_centre(207_934, off, 311_857_484, &words);
+        gather_reads_every_centre(208_378, off, 286_636_825, &words);
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+    #[test]
+    fn gather_reads_every_centre_anywhere(
+        ratio in (2.9f64..4.15).prop_map(|r| (r * 65536.0) as u32),
+        off in -85i32..=85,
+        first in any::<u32>(),
+        words in proptest::collection::vec(any::<u16>(), super::ring::RING_WORDS),
+    ) {
+        gather_reads_every_centre(ratio, off, first, &words);
+    }
+}
+
 #[test]
 fn resynchronises_after_a_gap() {
     let sent = frames(30, 11);
