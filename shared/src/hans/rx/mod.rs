@@ -168,9 +168,9 @@
 //! what is left is listed in the README ("Known limits").
 
 pub mod channel;
+pub mod confirm;
 pub mod gap;
 pub mod hunt;
-pub mod confirm;
 pub mod modes;
 pub mod phase;
 pub mod ring;
