@@ -31,8 +31,9 @@
 //!   successor's must lie within 3/8 of a bit of the prediction, as every frame's
 //!   (module docs of [`super`], "Frames"), before anything is published, and its
 //!   edges correct the timing as ever.
-//! - **The first frames after the gap re-centre the phase.** For its first
-//!   [`super::timing::RECENTRE`] frames after a coast the timing is the
+//! - **The first frames after the gap re-centre the phase.** Until
+//!   [`super::timing::RECENTRE`] frames after a coast have verified (failed ones
+//!   measure nothing and do not count) the timing is the
 //!   least-squares line of [`super::phase`] again, its prior the filter's 128
 //!   start edges as far back as the coast reached ([`super::phase::Fit::prior`]):
 //!   a verified frame's 61 mid-pair edges then move the phase to within a few
