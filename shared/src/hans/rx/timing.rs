@@ -242,6 +242,16 @@ impl Timing {
         self.fits >= YOUNG - RECENTRE
     }
 
+    /// True after a coast until the first verified frame has re-measured the
+    /// phase on its mid-pair edges: until then the phase is the coast's
+    /// prediction, which can have drifted a good part of a bit, and a frame read
+    /// with it can pass every check with one pair read a bit off (the first frame
+    /// after a 2-half coast at 50 MHz / -1 % in super mode did), so it must not be
+    /// published.
+    pub fn recentring(&self) -> bool {
+        self.owed == RECENTRE
+    }
+
     /// True once the lock has measured [`SETTLED`] start edges.
     pub fn settled(&self) -> bool {
         self.fits >= SETTLED

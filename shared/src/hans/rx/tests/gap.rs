@@ -129,7 +129,8 @@ fn feed(rx: &mut HansRx, words: &[u16], gaps: &[(usize, usize)], chunk: usize) -
 /// A stream's frames published around one gap `g0..g1`: in order, each once, none
 /// with a bit in the gap, and none lost but those, one on either side (the last
 /// one before needs its successor's start edge, the first one after is skipped
-/// when its start edge is read less than the search window after the gap) and
+/// when its start edge is read less than the search window after the gap), the
+/// first verified one after a coast (held until it has re-measured the phase) and
 /// `relock` more. Returns the first frame published after the gap and its distance
 /// from the first frame wholly after it.
 fn check_gap(
@@ -157,7 +158,7 @@ fn check_gap(
         .filter(|k| !got.contains(k) && !touched.contains(k))
         .count();
     assert!(
-        missed <= 2 + relock,
+        missed <= 3 + relock,
         "{label}: {missed} frames lost: {got:?}"
     );
     (first, first - after)
@@ -181,21 +182,21 @@ fn a_settled_lock_coasts_across_whole_halves() {
                 let mut rx = HansRx::new(hz, mode).unwrap();
                 let got = s.indices(&feed(&mut rx, &s.words, &[(g0, g1 - g0)], 64));
                 let (first, late) = check_gap(&s, &got, (g0, g1), 0, &label);
-                assert!(late <= 1, "{label}: resumed {late} frames late");
+                assert!(late <= 2, "{label}: resumed {late} frames late");
                 // Skipped: the periods from the last decoded before the gap to the
                 // first after; every other period verified on every used channel
                 // (the first SETTLED - 2 of the lock without publishing).
                 let last_before = *got.iter().rev().find(|&&k| k < first).unwrap();
                 assert_eq!(
                     rx.skipped() as usize,
-                    first - last_before - 1,
+                    first - last_before - 2,
                     "{label}: skipped"
                 );
                 for n in bits(mode.channel_mask()) {
                     let st = rx.stats(number(n)).unwrap();
                     assert_eq!(
                         (st.frames_ok as usize, st.check_failures, st.missing),
-                        (got.len() + ACQUISITION, 0, 0),
+                        (got.len() + ACQUISITION + 1, 0, 0),
                         "{label}: CH{}",
                         n + 1
                     );
@@ -251,7 +252,7 @@ proptest! {
         let got = s.indices(&feed(&mut rx, &s.words, &[(g0, len)], chunk));
         let label = format!("{mode:?} gap {g0}+{len}");
         let (first, late) = check_gap(&s, &got, (g0, g0 + len), 0, &label);
-        prop_assert!(late <= 1, "{}: resumed {} frames late", label, late);
+        prop_assert!(late <= 2, "{}: resumed {} frames late", label, late);
         let last_before = *got.iter().rev().find(|&&k| k < first).unwrap();
         let skipped = rx.skipped() as usize;
         prop_assert!(skipped >= s.touched(g0, g0 + len).0.len());
@@ -297,16 +298,17 @@ fn coasting_under_jitter_and_offset() {
                         continue;
                     }
                     let (_, late) = check_gap(&s, &got, (g0, g1), 0, &label);
-                    assert!(late <= 2, "{label}: resumed {late} frames late");
+                    assert!(late <= 3, "{label}: resumed {late} frames late");
                     late_total += late;
                     runs += 1;
                 }
             }
         }
     }
-    // Most runs resume with the first frame wholly after the gap or the next.
+    // Most runs resume with the first frame wholly after the gap but one (the one
+    // that re-measures the phase is held, `Timing::recentring`) or the next.
     assert!(
-        late_total * 2 <= runs,
+        late_total * 2 <= runs * 3,
         "{late_total} frames late over {runs} runs"
     );
 }
@@ -421,7 +423,7 @@ fn a_too_long_gap_is_dropped_and_relocks() {
         let mut rx = HansRx::new(40_000_000, Mode::Super).unwrap();
         let got = s.indices(&feed(&mut rx, &s.words, &[(g0 + shift, max)], 64));
         let (_, late) = check_gap(&s, &got, (g0 + shift, g0 + shift + max), 0, "at the bound");
-        assert!(late <= 1, "shift {shift}: {late}");
+        assert!(late <= 2, "shift {shift}: {late}");
     }
 }
 
@@ -501,7 +503,7 @@ fn a_ring_lap_gap_reads_no_stale_samples() {
                 let relock = if lap == RING_WORDS { 0 } else { LOCK };
                 let (_, late) = check_gap(&s, &got, (g0, g0 + lap), relock, &label);
                 if lap == RING_WORDS {
-                    assert!(late <= 1, "{label}: {late}");
+                    assert!(late <= 2, "{label}: {late}");
                 }
             }
         }
