@@ -130,28 +130,7 @@ mod tests {
         (v * Q).round() as i32
     }
 
-    /// Samples of a line that idles high, then sends `pattern` with bit boundary
-    /// `k` at `edge(k)` (samples), written to a ring from stream word 0.
-    fn ring_of(pattern: u128, edge: impl Fn(usize) -> f64) -> Ring {
-        let bits: Vec<bool> = (0..125).rev().map(|i| (pattern >> i) & 1 == 1).collect();
-        let level = |t: f64| {
-            if t < edge(0) || t >= edge(125) {
-                return true;
-            }
-            let b = (0..125).rfind(|&b| t >= edge(b)).unwrap_or(0);
-            bits[b]
-        };
-        let words: Vec<u16> = (0..64)
-            .map(|w| {
-                (0..16).fold(0u16, |acc, i| {
-                    acc << 1 | u16::from(level(f64::from(w * 16 + i)))
-                })
-            })
-            .collect();
-        let mut ring = Ring::default();
-        ring.write(0, &words);
-        ring
-    }
+    use crate::hans::rx::phase::tests::ring_of_edges as ring_of;
 
     /// The start edge the receiver measures for a line edge at `t` (samples): half a
     /// sample before the first sample at the new level.

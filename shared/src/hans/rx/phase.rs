@@ -321,7 +321,7 @@ fn clamp(v: i64) -> i32 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::hans::Frame;
     use proptest::prelude::*;
@@ -377,22 +377,20 @@ mod tests {
     /// at `ratio` samples per bit, each bit boundary `k` moved by `jitter(k)`
     /// samples; the words are written to a ring from stream word 0.
     fn ring_of(pattern: u128, t0: f64, ratio: f64, jitter: impl Fn(usize) -> f64) -> Ring {
+        ring_of_edges(pattern, |k| t0 + k as f64 * ratio + jitter(k))
+    }
+
+    /// Samples of a line that idles high, then sends `pattern` with bit boundary
+    /// `k` at `edge(k)` (samples, increasing), written to a ring from stream word
+    /// 0 (also `confirm`'s tests).
+    pub(in crate::hans::rx) fn ring_of_edges(pattern: u128, edge: impl Fn(usize) -> f64) -> Ring {
         let bits: Vec<bool> = (0..125).rev().map(|i| (pattern >> i) & 1 == 1).collect();
-        let edge = |k: usize| t0 + k as f64 * ratio + jitter(k);
         let level = |t: f64| {
-            if t < edge(0) {
+            if t < edge(0) || t >= edge(125) {
                 return true;
             }
-            // The bit whose (moved) boundaries hold t.
-            let mut b = 0;
-            while b + 1 < 125 && t >= edge(b + 1) {
-                b += 1;
-            }
-            if b + 1 == 125 && t >= edge(125) {
-                true
-            } else {
-                bits[b]
-            }
+            let b = (0..125).rfind(|&b| t >= edge(b)).unwrap_or(0);
+            bits[b]
         };
         let words: Vec<u16> = (0..64)
             .map(|w| {

@@ -388,17 +388,22 @@ fn resynchronises_after_a_gap() {
     assert!(rx.stats(2).unwrap().resyncs >= 1);
 }
 
-#[test]
-fn garbage_and_constant_lines_publish_nothing() {
-    let mut x = 0x1234_5678u32;
-    let noise: Vec<u16> = (0..5000)
+/// `n` words of xorshift32 noise from `seed` (non-zero).
+pub(super) fn noise(seed: u32, n: usize) -> Vec<u16> {
+    let mut x = seed;
+    (0..n)
         .map(|_| {
             x ^= x << 13;
             x ^= x >> 17;
             x ^= x << 5;
             x as u16
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn garbage_and_constant_lines_publish_nothing() {
+    let noise = noise(0x1234_5678, 5000);
     for words in [noise, vec![0u16; 500], vec![0xFFFF; 500], vec![0xAAAA; 500]] {
         for mode in MODES {
             let mut rx = HansRx::new(45_000_000, mode).unwrap();

@@ -434,15 +434,7 @@ fn a_too_long_gap_is_dropped_and_relocks() {
 fn garbage_after_a_gap_never_yields_a_frame() {
     let s = Stream::new(200, 9, 3.2, 0.5, 0.0);
     let g0 = 50 * 25 + 11;
-    let mut x = 0xC0FF_EE11u32;
-    let noise: Vec<u16> = (0..400)
-        .map(|_| {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            x as u16
-        })
-        .collect();
+    let noise = super::noise(0xC0FF_EE11, 400);
     // Half a bit, one bit and half a frame late: the same frames, other edges.
     let shifted = |bits: f64| oversample(&line_bits(&s.sent), 3.2, 0.5 - bits);
     let tails: [(&str, Vec<u16>); 6] = [

@@ -139,15 +139,7 @@ fn frames_that_never_read_right_never_lock() {
 
 #[test]
 fn noise_and_dense_candidates_never_lock() {
-    let mut x = 0x9E37_79B9u32;
-    let noise: Vec<u16> = (0..20_000)
-        .map(|_| {
-            x ^= x << 13;
-            x ^= x >> 17;
-            x ^= x << 5;
-            x as u16
-        })
-        .collect();
+    let noise = super::noise(0x9E37_79B9, 20_000);
     // Runs of ones just over the threshold everywhere: a candidate every 9 to 12
     // samples, many pairs within a period's bounds, each read and dropped.
     let dense: Vec<u16> = [0xFF7F, 0xBFDF, 0xEFF7, 0xFBFD, 0xFEFF]
