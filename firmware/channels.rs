@@ -22,6 +22,7 @@
 //! [H] xy2_in / xy3_in --> [H] bridge_hans_out (same inputs; HANS-100 head)
 //! [H] bridge_* --XY3_RESYNC (session)--> [H] xy3_in (lines out of step: restart)
 //! [H] hans_status_in --HANS_STATUS_RAW--> [D] hans_status --HEAD_STATUS--> bridge
+//! [D] hans_status --HANS_STATUS_CONTIGUOUS--> [H] hans_status_in (every half, please)
 //! [H] hans_in --HANS_INPUT--> [D] hans_decode --HANS_EVENTS--> [H] bridge loops
 //! [D] hans_decode, hans_status <--> DECODE_GOVERNOR (decode / drop / pause)
 //! [H] bridge loops --HANS_STATUS_OUT (frames)--> [H] hans_status_out (SAI2 B)
@@ -120,9 +121,14 @@ pub static RAW_INPUT: Channel<CriticalSectionRawMutex, RawInput, 3> = Channel::n
 /// in the decode executor.
 #[derive(Clone)]
 pub struct HansStatusRaw {
-    /// Number of this half in the SPI6 stream: two halves with consecutive numbers
-    /// are contiguous signal (a ring overrun skips a number), so the decoder may
-    /// keep its receiver across them.
+    /// Reception session: it changes when words were lost at the SPI or in the
+    /// ring (an overrun), so that how many is not known.
+    pub session: u32,
+    /// Number of this half in the SPI6 stream. Within a session, half numbers
+    /// times [`HANS_HALF`] are word counts of one continuous signal: the decoder
+    /// knows how many words lie between two halves it decodes (the halves not
+    /// passed on, or dropped), and its receiver coasts across them
+    /// (`shared::hans::follow`).
     pub half: u32,
     /// When the half was complete (`embassy_time::Instant` ticks): its age is the
     /// decode governor's backlog.
@@ -133,8 +139,16 @@ pub struct HansStatusRaw {
 
 /// HANS STATUS halves to `status::hans_status` (decode executor, under the
 /// [`DECODE_GOVERNOR`] as optional work). Only every `line::hans_status_every`-th
-/// half is sent; a full queue drops the half (counted in `input_overruns`).
+/// half is sent (every half while [`HANS_STATUS_CONTIGUOUS`] asks for it); a full
+/// queue drops the half (counted in `input_overruns`).
 pub static HANS_STATUS_RAW: Channel<CriticalSectionRawMutex, HansStatusRaw, 1> = Channel::new();
+
+/// Set by `status::hans_status` while its receiver's lock cannot coast across a
+/// skipped half yet (`shared::hans::follow::Follow::coasts`: from a new receiver
+/// until a run of frames has left the young fit): `line::hans_status_in` then
+/// passes on every half, not only every `line::hans_status_every`-th, so that an
+/// acquisition is not cut short by the halves in between. Set from reset on.
+pub static HANS_STATUS_CONTIGUOUS: AtomicBool = AtomicBool::new(true);
 
 /// Backchannel rate to switch the controller side (UART7 TX) to (XY3-100 §6):
 /// raised by the bridge from `Output.controller_back_rate` once the bytes made for

@@ -30,6 +30,7 @@ use embassy_time::{Instant, Timer};
 use heapless::Vec;
 use shared::bridge::HansDecode;
 use shared::governor::Class;
+use shared::hans::follow::Follow;
 use shared::hans::rx::{HansRx, Mode};
 use shared::model::{FaultKind, Line, LineEvent};
 
@@ -119,80 +120,62 @@ async fn hans_session(
     }
 }
 
-/// The receiver and where its word count stands against the input task's.
-struct Decoder {
-    rx: HansRx,
-    /// The input session the receiver follows (`None` before the first half).
-    session: Option<u32>,
-    /// `first_word` the next half must have to continue the stream.
-    next_word: u32,
-}
-
 /// HANS-100 controller decoder (decode executor, see the module docs): each half
 /// from [`HANS_INPUT`] the governor admits goes through `HansRx` in `mode`
 /// ([`CHUNK`] words at a time) and the events go to [`HANS_EVENTS`] in order. A half
 /// that does not continue the last decoded one is reported as a `Dropped` fault on
-/// the framing line. When halves of the same session are missing (lost on a full
-/// queue or dropped by the governor) the receiver is told how many words
-/// (`HansRx::skip`, the gap from `first_word`): the sender's clock ran on, so a
-/// settled lock coasts across and decodes again from the first frame after the
-/// gap, instead of paying a new hunt and young lock for the shed load. A new
-/// session (the channels restarted, their words no longer the same stream) or a
-/// gap beyond `HansRx::max_gap_words` starts a fresh receiver.
+/// the framing line. Which receiver decodes it is `shared::hans::follow`'s rule
+/// (the head STATUS decoder follows it too): when halves of the same session are
+/// missing (lost on a full queue or dropped by the governor) the receiver is told
+/// how many words (`HansRx::skip`, the gap from `first_word`): the sender's clock
+/// ran on, so a settled lock coasts across and decodes again from the first frame
+/// after the gap, instead of paying a new hunt and young lock for the shed load. A
+/// new session (the channels restarted, their words no longer the same stream) or
+/// a gap beyond `HansRx::max_gap_words` starts a fresh receiver.
 #[embassy_executor::task]
 pub async fn hans_decode(mode: Mode) {
-    let fresh = || HansRx::new(HANS_FS_HZ, mode);
-    let mut dec = match fresh() {
-        Ok(rx) => Decoder {
-            rx,
-            session: None,
-            next_word: 0,
-        },
-        Err(e) => {
-            // Not reachable: the configuration was validated and fs is in range.
-            defmt::error!("hans decode: {}; no controller input", e);
-            return;
-        }
+    let fresh = || HansRx::new(HANS_FS_HZ, mode).ok();
+    let Some(mut rx) = fresh() else {
+        // Not reachable: the configuration was validated and fs is in range.
+        defmt::error!("hans decode: no receiver; no controller input");
+        return;
     };
+    let mut follow = Follow::new();
     let mut events: Vec<(u32, LineEvent), CHUNK_EVENTS> = Vec::new();
     loop {
         let raw = HANS_INPUT.receive().await;
-        // Pauses here while over its share of the core; a dropped half leaves
-        // `next_word` behind, so the next decoded one reports the gap.
+        // Pauses here while over its share of the core; a dropped half leaves a
+        // gap in `first_word`, so the next decoded one reports it.
         if !governor::admit(Class::Essential, raw.ready).await {
             continue;
         }
         let mut busy = Busy::new();
-        if dec.session != Some(raw.session) || raw.first_word != dec.next_word {
-            if dec.session.is_some() {
-                let gap = LineEvent::Fault {
-                    line: Line::Framing,
-                    kind: FaultKind::Dropped,
-                };
-                HANS_EVENTS.send((raw.first_word, gap)).await;
-            }
-            // Words per channel missing since the last decoded half (wrapping like
-            // the count; a stale half from before it would read as a huge gap).
-            let gap = raw.first_word.wrapping_sub(dec.next_word);
-            if dec.session == Some(raw.session) && gap <= dec.rx.max_gap_words() {
-                // Only a dropped lock reports anything (at most one resync per
-                // channel, a period resync and a missing per channel).
-                busy.run(|| {
-                    dec.rx.skip(gap, &mut |ev| {
-                        if events.push((raw.first_word, ev.to_line_event())).is_err() {
-                            Stats::bump(&STATS.input_overruns);
-                        }
-                    })
-                });
-                for ev in events.drain(..) {
-                    HANS_EVENTS.send(ev).await;
-                }
-            } else if let Ok(rx) = fresh() {
-                dec.rx = rx;
-            }
-            dec.session = Some(raw.session);
+        // Only a dropped lock reports anything (at most one resync per channel, a
+        // period resync and a missing per channel).
+        let step = busy.run(|| {
+            follow.apply(
+                &mut rx,
+                raw.session,
+                raw.first_word,
+                HANS_IN_HALF as u32,
+                fresh,
+                &mut |ev| {
+                    if events.push((raw.first_word, ev.to_line_event())).is_err() {
+                        Stats::bump(&STATS.input_overruns);
+                    }
+                },
+            )
+        });
+        if step.lost() {
+            let gap = LineEvent::Fault {
+                line: Line::Framing,
+                kind: FaultKind::Dropped,
+            };
+            HANS_EVENTS.send((raw.first_word, gap)).await;
         }
-        dec.next_word = raw.first_word.wrapping_add(HANS_IN_HALF as u32);
+        for ev in events.drain(..) {
+            HANS_EVENTS.send(ev).await;
+        }
         for at in (0..HANS_IN_HALF).step_by(CHUNK) {
             let chunk = |n: usize| {
                 raw.words
@@ -205,7 +188,7 @@ pub async fn hans_decode(mode: Mode) {
             // loop spreads them over its output slots by it).
             let base = raw.first_word.wrapping_add(at as u32);
             busy.run(|| {
-                dec.rx.push_at(&chunks, &mut |pos, ev| {
+                rx.push_at(&chunks, &mut |pos, ev| {
                     let word = base.wrapping_add(pos as u32);
                     if events.push((word, ev.to_line_event())).is_err() {
                         // Not reachable (CHUNK_EVENTS bounds a chunk), but never silent.

@@ -15,8 +15,8 @@ use super::ctrl_word::{self, CtrlWord};
 use super::Irqs;
 use crate::board::{HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes};
 use crate::channels::{
-    HansStatusRaw, RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_RAW, RAW_INPUT, STATS, XY2_HALF,
-    XY3_HALF, XY3_INPUT, XY3_LINES, XY3_MARKS, XY3_RESYNC,
+    HansStatusRaw, RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_CONTIGUOUS, HANS_STATUS_RAW,
+    RAW_INPUT, STATS, XY2_HALF, XY3_HALF, XY3_INPUT, XY3_LINES, XY3_MARKS, XY3_RESYNC,
 };
 use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::{Instance, RxError, SpiSlaveRx};
@@ -281,13 +281,26 @@ async fn xy3_session(
 ///   receiver runs on and every frame is decoded.
 /// * With a HANS-100 controller (HANS-100 -> HANS-100): **every second half** (2).
 ///   Its input decoder takes 41 % in normal mode and the line executor ~17 %
-///   (bridge, slot updates, HANS STATUS out); the STATUS decoder adds 20 %: the
-///   decode executor is busy ~73 % of the time, under the 90 %. Every half (81 % +
-///   17 %, busy ~98 %) would not fit. Each half decoded starts a fresh receiver (the
-///   halves in between are skipped), so the head's status is at most two halves
-///   (410 us) plus a decode old. With vote3 (~65 %) the two together are over the
-///   share, and vote5 / super alone: the governor drops STATUS halves first
-///   (optional work) but decodes one at least every 1.6 ms.
+///   (bridge, slot updates, HANS STATUS out); the STATUS decoder adds ~22 %: the
+///   decode executor is busy ~75 % of the time, under the 90 %. Every half (81 % +
+///   17 %, busy ~98 %) would not fit. One receiver follows the signal across the
+///   halves in between (`shared::hans::follow`, `HansRx::skip`): its settled lock
+///   coasts over each skipped half and publishes from the second frame wholly in
+///   the next one, so the head's status is at most two halves (410 us) plus a
+///   decode old. The ~22 % is a half after a skipped one: 43 369 instructions
+///   (QEMU bench row "hans rx: STATUS half, after a skipped half": the settled
+///   cost and two re-centring frames at the young fit's) per 410 us. Before, each
+///   half decoded was a new receiver, a hunt and then young-fit frames only (a
+///   half is 20.5 frames, the young fit 32), the receiver's most expensive state:
+///   99 773 ("new receiver"), ~51 %, which did not fit beside the input decoder.
+///   A lock that cannot coast yet (a new receiver, or one that lost its lock) gets
+///   every half ([`HANS_STATUS_CONTIGUOUS`], about two halves per acquisition,
+///   over the share while they last: a half the governor drops then costs the
+///   young lock, which hunts again on the next, as before). With vote3 (~65 %)
+///   the two together are over the share, and vote5 / super alone: the governor
+///   drops STATUS halves first (optional work) but decodes one at least every
+///   1.6 ms (a gap of up to ~5.8 halves is coasted across, a longer one starts a
+///   new receiver).
 ///
 /// Below ~1 700 instructions per frame (busy ~85 %), 1 fits both pairings.
 pub const fn hans_status_every(hans_controller: bool) -> u32 {
@@ -300,9 +313,11 @@ pub const fn hans_status_every(hans_controller: bool) -> u32 {
 
 /// HANS-100 STATUS input (head side): `fs` (TIM3 CH2) is the oversampling clock that
 /// clocks SPI6 through a wire from PC7 to PB3; SPI6 receives 16-bit words into a
-/// BDMA ring in SRAM4. Every `every`-th half ([`hans_status_every`]) goes to the
-/// STATUS decoder in the decode executor (`status::hans_status`, via
-/// [`HANS_STATUS_RAW`]), numbered so the decoder knows which halves are contiguous.
+/// BDMA ring in SRAM4. Every `every`-th half ([`hans_status_every`]), and every
+/// half while [`HANS_STATUS_CONTIGUOUS`] asks for it, goes to the STATUS decoder in
+/// the decode executor (`status::hans_status`, via [`HANS_STATUS_RAW`]), numbered
+/// so the decoder knows how many words lie between two halves, in a session that
+/// changes when words were lost (an overrun: how many is not known).
 #[embassy_executor::task]
 pub async fn hans_status_in(r: HansStatusInRes, fs: Fs, every: u32) {
     let mut fs = fs;
@@ -319,6 +334,7 @@ pub async fn hans_status_in(r: HansStatusInRes, fs: Fs, every: u32) {
     };
     let every = every.max(1);
     let mut raw = HansStatusRaw {
+        session: 0,
         half: 0,
         ready: 0,
         words: [0u16; HANS_HALF],
@@ -329,17 +345,19 @@ pub async fn hans_status_in(r: HansStatusInRes, fs: Fs, every: u32) {
                 Stats::bump(&STATS.input_halves);
                 raw.half = raw.half.wrapping_add(1);
                 raw.ready = Instant::now().as_ticks();
+                let wanted = raw.half.is_multiple_of(every)
+                    || HANS_STATUS_CONTIGUOUS.load(Ordering::Relaxed);
                 // A full queue means the decoder is still on the last one: skip.
-                if raw.half.is_multiple_of(every) && HANS_STATUS_RAW.try_send(raw.clone()).is_err()
-                {
+                if wanted && HANS_STATUS_RAW.try_send(raw.clone()).is_err() {
                     Stats::bump(&STATS.input_overruns);
                 }
             }
             Err(e) => {
                 defmt::warn!("hans status in: {}", e);
                 Stats::bump(&STATS.input_overruns);
-                // The signal lost here breaks contiguity: skip a number.
-                raw.half = raw.half.wrapping_add(1);
+                // Words were lost, how many is not known: the decoder must not
+                // count across (a new receiver on the next half).
+                raw.session = raw.session.wrapping_add(1);
             }
         }
     }

@@ -18,6 +18,7 @@ use shared::xy3::back::{Event, Packet, Parser};
 
 use core::sync::atomic::Ordering;
 
+use shared::hans::follow::Follow;
 use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
 use shared::hans::StatusReceiver;
 use shared::model::FaultKind;
@@ -27,8 +28,8 @@ use shared::governor::Class;
 use super::governor::{self, Busy};
 use crate::board::HANS_FS_HZ;
 use crate::channels::{
-    Stats, BACK_RATE, BACK_TX, CTRL_STATUS_OK, HANS_STATUS_RAW, HEAD_BACK_RATE, HEAD_STATUS,
-    HEALTH, STATS,
+    Stats, BACK_RATE, BACK_TX, CTRL_STATUS_OK, HANS_HALF, HANS_STATUS_CONTIGUOUS, HANS_STATUS_RAW,
+    HEAD_BACK_RATE, HEAD_STATUS, HEALTH, STATS,
 };
 use crate::drivers::status_level::{StatusIn, StatusOut};
 
@@ -146,52 +147,72 @@ pub async fn status_level_out(pin: Output<'static>, level: StatusLevel) {
 /// that passed its checks through `shared::hans::StatusReceiver` and publishes the
 /// head's status to [`HEAD_STATUS`] when a half gave at least one frame (the bridge
 /// counts that as the status being seen). Frames that failed a check are counted
-/// (`status_faults`), never applied. The receiver carries over from one half to the
-/// next only when they are contiguous signal (consecutive half numbers: every half is
-/// passed on and none was lost or dropped); otherwise each half starts a fresh one,
-/// which locks within its first frames. The governor decodes a half only with spare
-/// credit, so the controller input decoder keeps its share.
+/// (`status_faults`), never applied.
+///
+/// One receiver follows the signal across the halves it does not see, as the
+/// controller input's decoder does (`shared::hans::follow`, the same rule): the
+/// half number gives the words in between (halves not passed on, or dropped by the
+/// governor), `HansRx::skip` is told of them and a settled lock coasts across, so
+/// each half decoded publishes from its first frames on (from the second frame
+/// wholly inside it: the first re-measures the phase) instead of hunting and
+/// running the young fit, the receiver's most expensive state, all over again. A
+/// new session (SPI6 lost words) or a gap beyond `HansRx::max_gap_words` starts a
+/// fresh receiver. A young lock cannot coast (it is dropped at a gap), so while
+/// the receiver has not published a run of frames yet (`Follow::coasts`) the task
+/// asks for every half ([`HANS_STATUS_CONTIGUOUS`]): an acquisition takes about two
+/// contiguous halves, then the pairing's every second half resumes. The governor
+/// decodes a half only with spare credit, so the controller input decoder keeps
+/// its share.
 #[embassy_executor::task]
 pub async fn hans_status() {
     let mode = HansMode::Normal { channel: 1 };
+    let fresh = || HansRx::new(HANS_FS_HZ, mode).ok();
     let mut receiver = StatusReceiver::new();
     let mut status = HeadStatus::default();
-    let mut rx = match HansRx::new(HANS_FS_HZ, mode) {
-        Ok(rx) => rx,
-        Err(e) => {
-            defmt::error!("hans status: {}", e);
-            return;
+    let Some(mut rx) = fresh() else {
+        // Not reachable: channel 1 and the 40 MHz fs are valid.
+        defmt::error!("hans status: no receiver");
+        return;
+    };
+    let mut follow = Follow::new();
+    let count = |ev: &RxEvent| {
+        if let RxEvent::Fault {
+            kind: FaultKind::CheckFailed,
+            ..
+        } = ev
+        {
+            Stats::bump(&STATS.status_faults);
         }
     };
-    // The number the next half must have to continue the decoded signal.
-    let mut next: Option<u32> = None;
     loop {
         let raw = HANS_STATUS_RAW.receive().await;
         if !governor::admit(Class::Optional, raw.ready).await {
             continue;
         }
-        if next != Some(raw.half) {
-            if let Ok(fresh) = HansRx::new(HANS_FS_HZ, mode) {
-                rx = fresh;
-            }
-        }
-        next = Some(raw.half.wrapping_add(1));
+        let first_word = raw.half.wrapping_mul(HANS_HALF as u32);
         let mut frames = 0u32;
         let mut busy = Busy::new();
         busy.run(|| {
-            rx.push(&[&raw.words], &mut |ev| match ev {
-                RxEvent::Frame(frame) => {
+            // The skip reports only a dropped lock's resyncs and missing periods.
+            follow.apply(
+                &mut rx,
+                raw.session,
+                first_word,
+                HANS_HALF as u32,
+                fresh,
+                &mut |ev| count(&ev),
+            );
+            rx.push(&[&raw.words], &mut |ev| {
+                follow.observe(&ev);
+                count(&ev);
+                if let RxEvent::Frame(frame) = ev {
                     receiver.apply(&frame, &mut status);
                     frames += 1;
                 }
-                RxEvent::Fault {
-                    kind: FaultKind::CheckFailed,
-                    ..
-                } => Stats::bump(&STATS.status_faults),
-                RxEvent::Fault { .. } => {}
             })
         });
         busy.report(Class::Optional);
+        HANS_STATUS_CONTIGUOUS.store(!follow.coasts(), Ordering::Relaxed);
         if frames > 0 {
             HEAD_STATUS.sender().send(status.clone());
         }

@@ -75,6 +75,16 @@ pub const WORKLOADS: &[Workload] = &[
         run: |w| rx_from(w, FW_FS_HZ, Mode::Super, FW_CHUNK, YOUNG_FROM),
     },
     Workload {
+        name: "hans rx: STATUS half, new receiver",
+        frames: STATUS_FRAMES,
+        run: |w| status_half(w, false),
+    },
+    Workload {
+        name: "hans rx: STATUS half, after a skipped half",
+        frames: STATUS_FRAMES,
+        run: |w| status_half(w, true),
+    },
+    Workload {
         name: "hans tx: slot update",
         frames: MEASURED as u32,
         run: tx,
@@ -189,6 +199,40 @@ const WHOLE: usize = usize::MAX;
 const FW_FS_HZ: u32 = 40_000_000;
 /// See [`FW_FS_HZ`].
 const FW_CHUNK: usize = 64;
+
+/// Words of a HANS STATUS input half (`firmware/channels.rs` `HANS_HALF`).
+const STATUS_HALF: usize = 512;
+/// Frame periods of a STATUS half at 40 MHz (20.48), as the window's frame count.
+const STATUS_FRAMES: u32 = 20;
+
+/// One SPI6 half of the head's HANS STATUS line as `status::hans_status` decodes
+/// it beside a HANS-100 controller (normal mode, channel 1, 40 MHz, the whole half
+/// in one push): with `follow`, by a receiver that decoded the three halves before
+/// the one skipped (locked and past its young fit) and is told of the skipped one
+/// (`HansRx::skip`); without, by a new receiver, as the task did before it
+/// followed the signal (and as it does during an acquisition).
+fn status_half(w: &mut Window, follow: bool) -> u32 {
+    let cap = black_box(capture(FW_FS_HZ));
+    let mode = Mode::Normal { channel: 1 };
+    let Ok(mut rx) = HansRx::new(FW_FS_HZ, mode) else {
+        return 0;
+    };
+    let mut sum = 0u32;
+    let mut sink = |e: RxEvent| {
+        if let RxEvent::Frame(f) = e {
+            sum = sum.wrapping_add(f.data1() ^ f.data3()).wrapping_add(1);
+        }
+    };
+    let half = |n: usize| [&cap.words[0][n * STATUS_HALF..(n + 1) * STATUS_HALF]];
+    if follow {
+        for n in 0..3 {
+            rx.push(&half(n), &mut sink);
+        }
+        rx.skip(STATUS_HALF as u32, &mut sink);
+    }
+    w.measure(|| rx.push(&half(4), &mut sink));
+    sum
+}
 
 /// One `Transmitter::update` per frame (slot write two ahead of the DMA).
 fn tx(w: &mut Window) -> u32 {

@@ -54,6 +54,7 @@
 //! - Codes 65 `DATA2[5]` and 3 D15..D11 are reserved: kept for exact round trips.
 
 pub mod ext;
+pub mod follow;
 pub mod frame;
 pub mod neutral;
 pub mod rx;
