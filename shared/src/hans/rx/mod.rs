@@ -150,7 +150,8 @@
 //! confirmation ~80 and the tail confirmation ~230, the timing filter ~70, copying the rings (one ring: ~5 per
 //! word with the per-call overhead, ~130 per frame; all five in vote5 / super: one
 //! pass, ~2.5 per word and channel plus ~85 per call, ~430 per frame for all
-//! five), per other channel ~12 per window for the centre compare (~200), and
+//! five), per other channel ~8.5 per window for the centre compare plus ~60 of
+//! set-up (~190; ~12 a window and ~220 before `matching` took them all in one call), and
 //! ~520 of per-frame bookkeeping (`push_at`, `frame`, `next`, `edges`,
 //! `evaluate`, `need`) for one channel, ~750 for five (~1 190 before the
 //! shortcuts). The **steady-state shortcuts**: `frame` reads the delays in one
@@ -697,15 +698,8 @@ impl HansRx {
         // samples between the two delays: a match means this channel's pattern is
         // the reference's.
         let mut same = 1u8 << reference;
-        for n in bits(others) {
-            let rel = (delay(n) - ref_delay + HALF as i32) >> FRAC;
-            if self
-                .rings
-                .get(n)
-                .is_some_and(|r| r.agrees(&self.centres, rel))
-            {
-                same |= 1 << n;
-            }
+        if others != 0 {
+            same |= self.matching(others, &delays, ref_delay);
         }
         // The ones that differ are gathered in full at their own delay (only their
         // entries of `patterns` are read; none in the steady state, which then
@@ -769,6 +763,25 @@ impl HansRx {
             self.timing.refine(&p);
         }
         self.pending = Some((verified, same));
+    }
+
+    /// The channels of `others` whose samples agree with the reference's centres
+    /// ([`HansRx::frame`]), each shifted by the whole samples between its delay
+    /// and the reference's. Out of line, with [`Ring::agrees`] inlined: one call
+    /// a frame instead of one per channel.
+    #[inline(never)]
+    fn matching(&self, others: u8, delays: &[i32; CHANNELS], ref_delay: i32) -> u8 {
+        let mut same = 0u8;
+        for n in bits(others) {
+            let (Some(ring), Some(&d)) = (self.rings.get(n), delays.get(n)) else {
+                continue;
+            };
+            let rel = (d - ref_delay + HALF as i32) >> FRAC;
+            if ring.agrees(&self.centres, rel) {
+                same |= 1 << n;
+            }
+        }
+        same
     }
 
     /// Aligns the channels of `mask` (used, not aligned) at this frame's start edge
@@ -857,10 +870,11 @@ impl HansRx {
         // every mode publishes it (what the general path below concludes too).
         if same & confirmed == self.used && present == self.used && self.shortcuts() {
             if let Ok(f) = ref_decoded {
-                for n in bits(present) {
-                    if let (Some(stats), Some(ch)) =
-                        (self.stats.get_mut(n), self.channels.get_mut(n))
-                    {
+                // All five slots with a mask test, not the set bits: unrolled with
+                // constant offsets, no index arithmetic per channel.
+                let slots = self.stats.iter_mut().zip(self.channels.iter_mut());
+                for (n, (stats, ch)) in slots.enumerate() {
+                    if present & (1 << n) != 0 {
                         stats.frames_ok = stats.frames_ok.wrapping_add(1);
                         ch.failures = 0;
                     }

@@ -229,13 +229,6 @@ impl Ring {
         }
     }
 
-    /// Windows `j` .. `j + n` as one slice, if they do not wrap around the ring.
-    #[inline(always)]
-    fn span(&self, j: u32, n: usize) -> Option<&[u32]> {
-        let t = j as usize % (RING_WORDS / 2);
-        self.windows.get(t..t + n)
-    }
-
     /// Window `j` (32 samples from sample `32 j`).
     #[inline(always)]
     pub fn window(&self, j: u32) -> u32 {
@@ -373,63 +366,77 @@ impl Ring {
         (u128::from(a) << 96 | u128::from(b) << 64 | u128::from(c) << 32 | u128::from(acc.cur)) >> 3
     }
 
-    /// True when this channel, `d` samples later than the reference (at most ±31),
-    /// has the reference's value at every centre of `centres`.
-    #[inline(never)]
+    /// True when this channel, `d` samples later than the reference, has the
+    /// reference's value at every centre of `centres`.
+    ///
+    /// Channel window `k` is read as the 32 samples `d` after the reference's window
+    /// `first + k`: bits `d mod 32` on of ring window `first + k + ⌊d / 32⌋`
+    /// joined with the start of the window after it. The shifts of the common
+    /// skews (up to 3 samples either way) are constants, so a window costs one
+    /// funnel shift with an immediate (`lsl`, `orr ... lsr #`) instead of three
+    /// register shifts. Inlined into the receiver's loop over the channels.
+    #[inline(always)]
     pub fn agrees(&self, centres: &Centres, d: i32) -> bool {
-        let mut bad = 0u32;
-        let mut j = centres.first;
         let windows = centres
             .windows
             .get(..centres.count)
             .unwrap_or(&centres.windows);
-        // A shift of a whole window (`a` = 0) reads each window as it is.
-        let a = d.unsigned_abs() & 31;
-        // `a` is 1..=31 in the shifted branches, so no shift below reaches 32.
-        let (l, r) = (a, 32u32.wrapping_sub(a) & 31);
-        // Most frames' windows do not wrap around the ring: then they are one slice
-        // and the loops need no index arithmetic per window.
-        let n = windows.len();
-        if d > 0 && a != 0 {
-            if let Some(span) = self.span(j, n + 1) {
-                let (&first, rest) = span.split_first().unwrap_or((&0, &[]));
-                let mut here = first;
-                for (&[m, v], &next) in windows.iter().zip(rest) {
-                    bad |= ((here << l | next >> r) & m) ^ v;
-                    here = next;
-                }
-                return bad == 0;
-            }
-            let mut here = self.window(j);
-            for &[m, v] in windows {
-                j = j.wrapping_add(1);
-                let next = self.window(j);
-                bad |= ((here << l | next >> r) & m) ^ v;
-                here = next;
-            }
-        } else if d < 0 && a != 0 {
-            if let Some(span) = self.span(j.wrapping_sub(1), n + 1) {
-                let (&first, rest) = span.split_first().unwrap_or((&0, &[]));
-                let mut prev = first;
-                for (&[m, v], &here) in windows.iter().zip(rest) {
-                    bad |= ((prev << r | here >> l) & m) ^ v;
-                    prev = here;
-                }
-                return bad == 0;
-            }
-            let mut prev = self.window(j.wrapping_sub(1));
-            for &[m, v] in windows {
-                let here = self.window(j);
-                bad |= ((prev << r | here >> l) & m) ^ v;
-                prev = here;
-                j = j.wrapping_add(1);
-            }
-        } else {
-            for &[m, v] in windows {
-                bad |= (self.window(j) & m) ^ v;
-                j = j.wrapping_add(1);
-            }
-        }
+        let s = centres.first.wrapping_add((d >> 5) as u32);
+        let bad = match d & 31 {
+            0 => self.differences::<0>(windows, s, 0),
+            1 => self.differences::<1>(windows, s, 1),
+            2 => self.differences::<2>(windows, s, 2),
+            3 => self.differences::<3>(windows, s, 3),
+            29 => self.differences::<29>(windows, s, 29),
+            30 => self.differences::<30>(windows, s, 30),
+            31 => self.differences::<31>(windows, s, 31),
+            l => self.differences::<32>(windows, s, l as u32),
+        };
         bad == 0
+    }
+
+    /// The OR over `windows` of the centre samples that differ from the reference,
+    /// window `k` read from ring windows `s + k` and `s + k + 1` shifted by `L`
+    /// (`L` = 32: by `l`, 1..=31, not a constant).
+    #[inline(always)]
+    fn differences<const L: u32>(&self, windows: &[[u32; 2]], s: u32, l: u32) -> u32 {
+        let t = s as usize % (RING_WORDS / 2);
+        // The windows up to the ring's end, then (if the frame wraps around it) the
+        // rest from its first slot: two plain slices, no index arithmetic per
+        // window.
+        let (head, rest) = windows
+            .split_at_checked(RING_WORDS / 2 - 1 - t)
+            .unwrap_or((windows, &[]));
+        let here = self.windows.get(t).copied().unwrap_or(0);
+        let after = self.windows.get(t + 1..).unwrap_or_default();
+        let (bad, here) = Self::shifted::<L>(head, after, here, l);
+        if rest.is_empty() {
+            return bad;
+        }
+        bad | Self::shifted::<L>(rest, &self.windows, here, l).0
+    }
+
+    /// [`Ring::differences`] over one slice: window `k` from the ring window
+    /// before `src[k]` (`here` for the first) and `src[k]` (`src` at least as long
+    /// as `windows`, or the windows past it are not compared). Also returns the
+    /// last ring window read.
+    #[inline(always)]
+    fn shifted<const L: u32>(windows: &[[u32; 2]], src: &[u32], here: u32, l: u32) -> (u32, u32) {
+        let mut bad = 0u32;
+        let mut here = here;
+        for (&[m, v], &next) in windows.iter().zip(src) {
+            let x = match L {
+                0 => here,
+                32 => here << l | next >> (32 - l),
+                _ => here << L | next >> (32 - L),
+            };
+            bad |= (x & m) ^ v;
+            here = next;
+            // Keeps this a loop: unrolled, the copies' pointers were recomputed
+            // from indices and spilled (11 and more instructions a window). A hint
+            // only: the result does not depend on it.
+            core::hint::black_box(());
+        }
+        (bad, here)
     }
 }

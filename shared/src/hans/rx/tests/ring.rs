@@ -72,7 +72,7 @@ proptest! {
     fn agrees_matches_sample_by_sample(
         reference in proptest::collection::vec(any::<u16>(), RING_WORDS),
         noise in proptest::collection::vec(any::<u16>(), RING_WORDS),
-        d in -20i32..=20,
+        d in -40i32..=40,
         start in 0u32..(RING_WORDS as u32 * 16),
         ratio in (3.0f64..4.0).prop_map(|r| (r * 65536.0) as u32),
         flip in proptest::option::of(0u32..(RING_WORDS as u32 * 16)),
