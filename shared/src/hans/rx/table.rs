@@ -19,19 +19,37 @@
 //! from the phase slot, and the second's from where the first's last centre plus
 //! one bit lands (at the table's rate). The gather loop then looks up one entry,
 //! loads two windows and appends up to 24 bits per step, halving the per-window
-//! bookkeeping. The second window's centres come from the slot's middle at the
-//! table's rate instead of the exact phase: they are off by at most 1/32 sample
-//! (the slot) plus 1/32 sample (the rate slack over the 23 centres after the
-//! first), plus, when the table's rate puts a centre just past a window's end that
-//! really lies just before it, that centre's overshoot (the next entry starts at
-//! phase 0): about 0.08 sample at most by this account, inside the 1/8 sample
-//! `gather_matches_bit_by_bit` allows around a rounding boundary. **But** the
-//! proptest `gather_reads_every_centre_anywhere` (any ring position, rate and
-//! table rate within `RATE_SLACK`) finds centres read from the neighbouring
-//! sample up to ~0.2 sample off (e.g. rate 232 881, table rate +71, first centre
-//! 721 653 681: a window's last centre at x.84 read from the next window's first
-//! sample); it allows 1/4 sample until that is traced. At 3x and ±25 % jitter a
-//! centre has ~0.25 sample of margin, so this error eats into it.
+//! bookkeeping.
+//!
+//! # How far a centre is read from where it lies
+//! The gather carries the exact phase of the next centre (the receiver's first
+//! centre plus whole bits at its rate, in Q16) from entry to entry, advancing it
+//! by the centres the entry said its windows hold, so the table's errors do not
+//! add up along a frame. Inside an entry, centre `k` (counted from the slot's
+//! first, `k <= 22`: two windows hold at most 23 centres at 2.85 samples per bit)
+//! is put at the slot's middle plus `k` bits at the table's rate instead of at
+//! the phase plus `k` bits at the true rate: at most half a slot (1/32 sample)
+//! plus `22 × RATE_SLACK` (`Table::follow` lets the rate drift that far before it
+//! drops the entries) off, `ERROR` = 3 918 / 65 536 ≈ 0.060 sample. A centre
+//! whose exact position is more than that from a sample boundary is therefore
+//! read from its own sample.
+//!
+//! One consequence must be caught: a centre within `ERROR` before a window's
+//! end can be put past it. The entry then does not gather it, and the next
+//! entry's phase is slightly negative (the centre lies in the window before). The
+//! table has `BELOW` slots for such phases, whose entries read their first
+//! centre from sample 0 (still within `ERROR` of it: reading it is the same
+//! near-boundary case) and put every other one where it belongs. Before they
+//! existed a negative phase was clamped to slot 0: the entry put all its centres
+//! 1/32 sample plus the overshoot late, so at a rate just below `32 / n` samples
+//! per bit (`n` centres per window; 4.0 and 3.2 are the 50 and 40 MHz clocks,
+//! there with the sender up to ~0.09 % fast) its last centre was put past the
+//! end again, in every following entry too, and the error grew by
+//! `64 - 2n × rate` samples (up to ~0.055) per entry for the rest of the frame:
+//! about 0.4 sample at most (the proptest `gather_reads_every_centre_anywhere`
+//! met 0.23, a random search near those rates 0.37). At 3x an entry's phase
+//! steps by a third of a bit from one to the next, so only lone entries were
+//! hurt there (~0.11 sample).
 //!
 //! The entries are built lazily for the rate in use (a few dozen instructions each,
 //! at most one per step) and all dropped when the tracked rate moves enough to
@@ -42,12 +60,22 @@ use super::ring::FRAC;
 
 /// Phase slots per sample (1/16 sample each).
 const SLOT_BITS: u32 = FRAC - 4;
-/// Slots: phases 0..r for r up to 4.2 samples per bit, plus slack.
+/// Slots: phases -1/16..r for r up to 4.2 samples per bit, plus slack.
 pub const SLOTS: usize = 72;
-/// Largest rate change (Q16 samples per bit) an entry tolerates: 23 centres after
-/// its first (the last of two windows of at most 12) it moves the last one by less
-/// than 1/32 sample.
+/// Slots below phase 0 (the first ones): a centre the previous entry put past
+/// its window's end lies up to `ERROR` before the next window's start.
+const BELOW: i32 = 1;
+/// Largest rate change (Q16 samples per bit) an entry tolerates: 22 centres after
+/// its first (the last of the at most 23 in two windows) it moves the last one by
+/// less than 1/32 sample.
 const RATE_SLACK: i32 = (1 << FRAC) / 32 / 24;
+/// Most a gathered centre lies from where the table puts it (Q16): half a slot
+/// plus the rate slack over the 22 centres after an entry's first (module doc).
+pub(super) const ERROR: i32 = (1 << (SLOT_BITS - 1)) + 22 * RATE_SLACK;
+const _: () = assert!(
+    ERROR < BELOW << SLOT_BITS,
+    "a negative phase needs its slot"
+);
 /// Result bits that can hold a group's centres: every group's product puts its
 /// centres `k, k + 4, k + 8` at bits 31, 27, 23, and the four are then OR-ed in one
 /// bit apart (the M7 shifts an operand for free), so one mask constant serves all.
@@ -132,15 +160,19 @@ impl Table {
     }
 
     /// The entry for two windows, the first of which has its first centre (plus
-    /// half a sample) `phase` (Q16) after its start.
+    /// half a sample) `phase` (Q16) after its start; `phase` may be down to
+    /// `-ERROR` (module doc), the entry then reads that centre from sample 0.
     #[inline(always)]
     pub fn entry(&mut self, phase: i32) -> &Pair {
-        let slot = ((phase.max(0) >> SLOT_BITS) as usize).min(SLOTS - 1);
+        // Offset before clamping: the compiler folds the constant into the
+        // gather's phase arithmetic, so the lookup gets no longer.
+        let slot = phase.wrapping_add(BELOW << SLOT_BITS).max(0) >> SLOT_BITS;
+        let slot = (slot as usize).min(SLOTS - 1);
         let ratio = self.ratio;
         match self.entries.get_mut(slot) {
             Some(e) => {
                 // A built entry has a centre in its first window (the slot lies
-                // within 4.5 samples of its start), so 0 marks an unbuilt one.
+                // within 4.44 samples of its start), so 0 marks an unbuilt one.
                 if e.a.count == 0 {
                     *e = pair(slot, ratio);
                 }
@@ -151,14 +183,15 @@ impl Table {
     }
 }
 
-/// Builds the entry of phase slot `slot` at `ratio` (Q16), taking the slot's middle.
+/// Builds the entry of phase slot `slot` at `ratio` (Q16), taking the slot's middle
+/// (negative for the `BELOW` slots).
 fn pair(slot: usize, ratio: i32) -> Pair {
-    let first = ((slot as u32) << SLOT_BITS) + (1 << (SLOT_BITS - 1));
-    let step = ratio.max(1 << FRAC) as u32;
+    let first = ((slot as i32 - BELOW) << SLOT_BITS) + (1 << (SLOT_BITS - 1));
+    let step = ratio.max(1 << FRAC);
     let a = build(first, step);
     // The first centre after window a, against the start of the next window.
     let next = first
-        .wrapping_add(a.count.wrapping_mul(step))
+        .wrapping_add((a.count as i32).wrapping_mul(step))
         .wrapping_sub(32 << FRAC);
     Pair {
         a,
@@ -167,13 +200,14 @@ fn pair(slot: usize, ratio: i32) -> Pair {
 }
 
 /// Builds the entry of a window whose first centre (plus half a sample) is at `pos`
-/// (Q16, below 32 samples) at `step` (Q16 samples per bit, at least one sample).
-fn build(pos: u32, step: u32) -> Entry {
+/// (Q16, below 32 samples; a negative one is read from sample 0) at `step` (Q16
+/// samples per bit, at least one sample).
+fn build(pos: i32, step: i32) -> Entry {
     let mut e = Entry::default();
     let mut pos = pos;
     let mut k = 0u32;
     while pos < 32 << FRAC && k < 12 {
-        let p = pos >> FRAC;
+        let p = pos.max(0) as u32 >> FRAC;
         let g = (k % 4) as usize;
         if let Some([m, mult]) = e.groups.get_mut(g) {
             *m |= 1 << (31 - p);
@@ -183,7 +217,7 @@ fn build(pos: u32, step: u32) -> Entry {
         }
         e.all |= 1 << (31 - p);
         k += 1;
-        pos += step;
+        pos = pos.saturating_add(step);
     }
     e.count = k;
     e
@@ -207,10 +241,10 @@ mod tests {
         let mut ratio = (2.85 * 65536.0) as i32;
         while ratio <= (4.2 * 65536.0) as i32 {
             for slot in 0..SLOTS as u32 {
-                if (slot << SLOT_BITS) as i32 >= ratio {
-                    break;
-                }
-                let e = build((slot << SLOT_BITS) + (1 << (SLOT_BITS - 1)), ratio as u32);
+                let e = build(
+                    ((slot as i32 - BELOW) << SLOT_BITS) + (1 << (SLOT_BITS - 1)),
+                    ratio,
+                );
                 let centres: Vec<u32> = (0..32).filter(|p| e.all & (1 << (31 - p)) != 0).collect();
                 assert_eq!(centres.len() as u32, e.count);
                 let mut windows = vec![0, u32::MAX];

@@ -249,18 +249,22 @@ fn super_mode_checks_differing_channels_on_their_own() {
     }
 }
 
+/// How far from a sample boundary a centre must lie to be read from its own sample
+/// (a fraction of a sample): just over the table's worst error (`table::ERROR`).
+fn gather_margin() -> f64 {
+    f64::from(super::table::ERROR + 1) / 65536.0
+}
+
 /// Word-level gathering against sampling bit by bit at the same positions, on random
 /// samples, at rates over the whole range and every sub-sample phase, with a table
-/// built for a rate off by nearly the most `Table::follow` lets pass; positions within
-/// 1/8 sample of a rounding boundary may go either way and are not compared (the
-/// table quantises phase to 1/16 sample and takes a slot's middle, its rate is off by
-/// at most 1/32 sample over one entry's 24 centres, and a centre the table's rate
-/// puts just past a window's end starts the next entry at phase 0: a centre lies
-/// within about 0.08 sample of its exact position).
+/// built for a rate off by nearly the most `Table::follow` lets pass; positions
+/// within the table's error (`table::ERROR`, ~0.06 sample) of a rounding boundary
+/// may go either way and are not compared.
 #[test]
 fn gather_matches_bit_by_bit() {
     use super::ring::{Centres, Ring};
     use super::table::Table;
+    let margin = gather_margin();
     let mut x = 0x2545_F491u32;
     let mut next = || {
         x ^= x << 13;
@@ -269,7 +273,7 @@ fn gather_matches_bit_by_bit() {
         x
     };
     for step in 0..60 {
-        let ratio = (2.9 + 1.25 * f64::from(step) / 60.0) * 65536.0;
+        let ratio = ((2.9 + 1.25 * f64::from(step) / 60.0) * 65536.0) as u32;
         let words: Vec<u16> = (0..64).map(|_| next() as u16).collect();
         let mut ring = Ring::default();
         ring.write(1000, &words);
@@ -279,12 +283,12 @@ fn gather_matches_bit_by_bit() {
         for k in 0..40 {
             let first = ((1000 * 16 + 37) as f64 * 65536.0 + f64::from(k) * 9000.0) as u32;
             let mut centres = Centres::default();
-            let got = ring.gather::<true>(&mut table, first, ratio as u32, &mut centres);
+            let got = ring.gather::<true>(&mut table, first, ratio, &mut centres);
             let mut mask_bits = 0;
             for b in 0..125u32 {
-                let pos = f64::from(first) + f64::from(b) * ratio;
+                let pos = f64::from(first) + f64::from(b) * f64::from(ratio);
                 let frac = (pos / 65536.0).fract();
-                if !(0.125..=0.875).contains(&frac) {
+                if !(margin..=1.0 - margin).contains(&frac) {
                     continue;
                 }
                 let s = (pos / 65536.0) as usize - 1000 * 16;
@@ -308,15 +312,14 @@ fn gather_matches_bit_by_bit() {
 
 /// [`gather_matches_bit_by_bit`] at any ring position, rate, table rate within its
 /// slack and first centre: every frame bit is gathered (125 centres) and each one
-/// away from a sample boundary reads its sample. Found by a clean line at 3.17x
-/// that lost a frame: the last window's single entry counted one centre fewer than
-/// the pair entry before it had left for it, and the frame's last bit read 0.
+/// more than the table's error (`table::ERROR`) from a sample boundary reads its
+/// sample. Found by a clean line at 3.17x that lost a frame: the last window's
+/// single entry counted one centre fewer than the pair entry before it had left
+/// for it, and the frame's last bit read 0.
 fn gather_reads_every_centre(ratio: u32, off: i32, first: u32, words: &[u16]) {
-    // Not the 1/8 sample of `gather_matches_bit_by_bit`: the table's error reaches
-    // ~0.2 sample at some phases (table.rs, "Two windows per entry").
-    const MARGIN: f64 = 0.25;
     use super::ring::{Centres, Ring, RING_WORDS};
     use super::table::Table;
+    let margin = gather_margin();
     let mut ring = Ring::default();
     // The ring holds every window the frame touches, whatever `first`.
     let base = (first >> 20).wrapping_sub(4);
@@ -334,7 +337,7 @@ fn gather_reads_every_centre(ratio: u32, off: i32, first: u32, words: &[u16]) {
     for b in 0..125u32 {
         let pos = u64::from(first) + u64::from(b) * u64::from(ratio);
         let frac = (pos & 0xFFFF) as f64 / 65536.0;
-        if !(MARGIN..=1.0 - MARGIN).contains(&frac) {
+        if !(margin..=1.0 - margin).contains(&frac) {
             continue;
         }
         let s = (pos >> 16) as u32;
@@ -347,22 +350,61 @@ fn gather_reads_every_centre(ratio: u32, off: i32, first: u32, words: &[u16]) {
     }
 }
 
+/// Random but fixed ring contents for the gather tests.
+fn gather_words() -> Vec<u16> {
+    (0..super::ring::RING_WORDS)
+        .map(|k| (k as u16).wrapping_mul(0x9E37) ^ 0x5A5A)
+        .collect()
+}
+
 #[test]
 fn gather_reads_the_last_centre_of_a_clean_3_17x_frame() {
-    let words: Vec<u16> = (0..super::ring::RING_WORDS)
-        .map(|k| (k as u16).wrapping_mul(0x9E37) ^ 0x5A5A)
-        .collect();
+    let words = gather_words();
     for off in (-85..=85).step_by(5) {
         gather_reads_every_centre(207_934, off, 311_857_484, &words);
         gather_reads_every_centre(208_378, off, 286_636_825, &words);
     }
 }
 
+/// Rates just below `32 / n` samples per bit (`n` centres per window: 4.0 and 3.2
+/// are the 50 and 40 MHz clocks with the sender slightly fast) put a window's last
+/// centre within the table's error of its end in entry after entry; a centre put
+/// past the end starts the next entry at a negative phase. Clamped to phase 0
+/// that read the rest of the frame ever later, up to 0.37 sample off (table.rs,
+/// "How far a centre is read from where it lies").
+#[test]
+fn gather_keeps_centres_at_rates_just_below_whole_centres_per_window() {
+    let words = gather_words();
+    // Cases the proptest and a random search met (0.23 and 0.37 sample off).
+    gather_reads_every_centre(232_881, 71, 721_653_681, &words);
+    gather_reads_every_centre(261_945, 76, 1_908_408_617, &words);
+    for n in [8u32, 10] {
+        for below in [10, 40, 70, 100, 150] {
+            let ratio = (32 << 16) / n - below;
+            for off in [-85, 0, 40, 85] {
+                for k in 0..64u32 {
+                    gather_reads_every_centre(ratio, off, k.wrapping_mul(0x9E37_79B9), &words);
+                }
+            }
+        }
+    }
+}
+
+/// A rate anywhere in the range, or (half the cases) just below `32 / n` samples
+/// per bit, where the table's errors met window ends entry after entry
+/// ([`gather_keeps_centres_at_rates_just_below_whole_centres_per_window`]).
+fn gather_ratio() -> impl Strategy<Value = u32> {
+    prop_oneof![
+        (2.9f64..4.15).prop_map(|r| (r * 65536.0) as u32),
+        (8u32..=11, 0u32..400).prop_map(|(n, below)| (32 << 16) / n - below),
+    ]
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
     #[test]
     fn gather_reads_every_centre_anywhere(
-        ratio in (2.9f64..4.15).prop_map(|r| (r * 65536.0) as u32),
+        ratio in gather_ratio(),
         off in -85i32..=85,
         first in any::<u32>(),
         words in proptest::collection::vec(any::<u16>(), super::ring::RING_WORDS),
