@@ -8,9 +8,6 @@ use crate::hans::rx::gap::MAX_COAST;
 
 /// Words in one DMA half as the firmware feeds the receiver.
 const DMA_HALF: usize = 512;
-/// Frames a relock may lose beyond the gap's: the hunt (two start edges and the
-/// frame between) and a fresh lock's first frames, which publish nothing.
-const RELOCK: usize = 16;
 
 /// A modelled line: frames sent back to back, sampled at `ratio` samples per bit
 /// from `phase` bits into the stream, every bit edge moved by up to `jitter` bits.
