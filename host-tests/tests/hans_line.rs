@@ -525,12 +525,16 @@ fn receive_with_gap(
 /// frame wholly after the gap (the line model's sampling phase is random within
 /// 200 ns, so "wholly after" is known to a frame), where a fresh receiver, what the
 /// firmware started before, needs a hunt and a young lock; and it never publishes a
-/// frame that was not sent, or one that lay in the gap.
+/// frame that was not sent, or one that lay in the gap. Every mode keeps the lock
+/// in every run: the vote and super modes time on their reference channel alone,
+/// as normal mode does on its one (54 of the 144 runs relocked, all in those
+/// modes, while every eighth frame moved the timing and every delay toward the
+/// channels' median: the rate wandered several times one channel's error).
 #[test]
 fn dropped_halves_are_coasted_across() {
     const HALF: usize = 512;
     let mut rng = ChaCha8Rng::seed_from_u64(66);
-    let (mut coasted, mut fresh_total, mut runs, mut relocked) = (0, 0, 0, 0);
+    let (mut coasted, mut fresh_total, mut runs) = (0, 0, 0);
     for fs in [37.5e6, 40e6, 50e6] {
         for offset in [-1.0, 0.0, 1.0] {
             let frames = random_frames(208, &mut rng);
@@ -571,17 +575,12 @@ fn dropped_halves_are_coasted_across() {
                     let lost = (first..end).filter(|k| !idx.contains(k)).count();
                     assert!(rx.skipped() > 0, "{at}: no period skipped");
                     runs += 1;
-                    if first > after + 2 || lost > 1 {
-                        // ...or the coast drifted too far and the lock was lost: then
-                        // it relocks as a fresh receiver would.
-                        assert!(
-                            lost <= LOCK_FRAMES,
-                            "{at}: {lost} frames lost, resumed at {first}"
-                        );
-                        assert!(!matches!(mode, Mode::Normal { .. }), "{at}: relocked");
-                        relocked += 1;
-                        continue;
-                    }
+                    // ...in every mode: the lock is kept (no relock, which would lose
+                    // a hunt and a young lock's frames).
+                    assert!(
+                        first <= after + 2 && lost <= 1,
+                        "{at}: {lost} frames lost, resumed at {first} (first wholly after the gap: {after})"
+                    );
                     // What the firmware did before: a fresh receiver after the gap.
                     let mut fresh = HansRx::new(fs.round() as u32, mode).unwrap();
                     let later: Vec<Vec<u16>> = words.iter().map(|w| w[g1..].to_vec()).collect();
@@ -600,24 +599,17 @@ fn dropped_halves_are_coasted_across() {
             }
         }
     }
-    let kept = runs - relocked;
     println!(
-        "1..4 dropped halves, ±25 % jitter, {runs} runs: {kept} coasted, first frame published {:.2} frames after the first one wholly after the gap on average (a fresh receiver: {:.2}); {relocked} lost the lock after the gap and relocked",
-        coasted as f64 / kept as f64,
-        fresh_total as f64 / kept as f64
+        "1..4 dropped halves, ±25 % jitter, {runs} runs, every one coasted: first frame published {:.2} frames after the first one wholly after the gap on average (a fresh receiver: {:.2})",
+        coasted as f64 / runs as f64,
+        fresh_total as f64 / runs as f64
     );
     // Most runs resume with the frame after that one or the next: the first
     // verified frame after a coast is held until it has re-measured the phase
     // (`Timing::recentring`), and the estimate of the first frame wholly after
-    // the gap is a frame off at most. Normal mode never loses the lock; the modes
-    // that time on several channels do at 37.5 MHz with a 1 % offset (their rate
-    // is worse than one channel's, README "Known limits"), and then relock.
+    // the gap is a frame off at most.
     assert!(
-        coasted <= 3 * kept,
-        "{coasted} frames late over {kept} runs"
+        coasted <= 3 * runs,
+        "{coasted} frames late over {runs} runs"
     );
-    // 18 of 144 on the `coast` branch; 54 with the hunt, the tail confirmation and
-    // the held re-measuring frame merged (every relock in a multi-channel mode):
-    // issue 6's open point, README "What is left (issue 6)".
-    assert!(relocked * 2 <= runs, "{relocked} of {runs} runs relocked");
 }

@@ -8,8 +8,8 @@
 //! period to about 2.5·10^-4 bit per frame (rms at ±25 % jitter, 1·10^-3 at worst,
 //! measured on 180 one-channel locks at 37.5 / 40 / 50 MHz and 0 / ±1 % offset; the
 //! steady-state variance of the alpha-beta filter at its settled gains gives the
-//! same; the modes that time on several channels do worse at 3x with an offset,
-//! see the README "What is left (issue 6)"), so the
+//! same; every mode times on one reference channel, so the modes that decode
+//! several channels track as well), so the
 //! start edges it predicts across a gap of a few DMA halves (20 frames each) are off
 //! by a few hundredths of a bit more than they are anyway. A fresh receiver, by
 //! contrast, hunts for two start edges and runs the young fit ([`super::phase`],
@@ -82,10 +82,7 @@
 //! acquisition ([`HansRx::max_gap_words`] for the caller's choice). The bound is
 //! about keeping the lock: reading every bit right at 3x and ±25 % jitter wants the
 //! phase within ~0.1 bit, so frames right after a long gap may fail their checks
-//! (counted, never published) until the re-centring has caught up; and the
-//! modes that time on several channels track a rate several times worse at 3x
-//! with an offset, where a coast over two or more halves often loses the lock and
-//! hunts again (README "What is left (issue 6)").
+//! (counted, never published) until the re-centring has caught up.
 
 use super::channel::DELAY_MAX;
 use super::ring::{diff, FRAC, RING_WORDS};

@@ -47,8 +47,9 @@
 //!    pattern is its samples nearest to `start + delay + (k + ½)·bit`.
 //! 3. **Tracking**: each channel's next start edge is searched ±1.5 bits around
 //!    its prediction (exactly one falling edge lies there on a good line). The
-//!    upper median of the edges of the channels that just verified (a glitch before
-//!    the real edge reads early) corrects phase and rate with an alpha-beta filter;
+//!    reference channel's edge, when it just verified, corrects phase and rate
+//!    with an alpha-beta filter (else the upper median of the edges of the
+//!    channels that did: a glitch before the real edge reads early);
 //!    for its first [`timing::YOUNG`] frames a lock is instead the least-squares
 //!    line through its start edges and the 61 mid-pair edges (every complement
 //!    pair has one) of each frame its reference channel verified ([`phase`]): a
@@ -56,8 +57,10 @@
 //!    young lock's phase ~0.35 sample off at ±25 % jitter, the pairs make it a few
 //!    hundredths; a lock that has not settled yet ([`timing::SETTLED`] start
 //!    edges) is dropped after six failures in a row, not three ([`timing::Timing::relock_after`]);
-//!    each channel's delay follows its own deviation from that consensus (averaged,
-//!    steps clamped to a sample). A lock publishes nothing until it has measured
+//!    each channel's delay follows its own deviation from that edge (averaged,
+//!    steps clamped to a sample), so a verified reference's delay stays put and
+//!    anchors the others (a consensus that moved every delay, the reference's
+//!    too, let their common part wander with the jitter, and the rate with it). A lock publishes nothing until it has measured
 //!    [`timing::SETTLED`] start edges (its first gains are large: a rate measured
 //!    over one jittered frame, or one false edge, can leave the phase half a bit
 //!    off at a frame's end, which no check sees); from then on an edge half a bit
@@ -1058,28 +1061,43 @@ impl HansRx {
             return;
         }
         // Channels that just verified are trusted; the others only when none did.
-        // The upper median shrugs off a glitch on a minority of channels (a glitch
-        // before the real edge reads early).
         let trusted = if found & verified != 0 {
             found & verified
         } else {
             found
         };
-        let mut picked = [0i32; CHANNELS];
-        let mut count = 0;
-        for n in bits(trusted) {
-            if let (Some(slot), Some(&e)) = (picked.get_mut(count), errs.get(n)) {
-                *slot = e;
-                count += 1;
+        let err = if trusted & reference != 0 {
+            // A trusted reference times the frame alone, as on every frame the
+            // others are not measured: its delay (its deviation from its own
+            // edge) then stays put and anchors every other delay, and the timing
+            // follows one channel's edges as in normal mode. A consensus of
+            // several channels here, every [`REMEASURE`]th frame, moved every
+            // delay toward it, the reference's too, and nothing held their common
+            // part: it wandered with the jitter, the reference's next edges
+            // read that wander as phase steps, and the filter's rate with it
+            // (at 3x, ±25 % jitter: ~2e-3 bit a frame rms, 6e-3 worst in vote5 /
+            // super against 2.5e-4 / 7e-4 for one channel).
+            errs.get(self.reference).copied().unwrap_or(0)
+        } else {
+            // The upper median shrugs off a glitch on a minority of channels (a
+            // glitch before the real edge reads early).
+            let mut picked = [0i32; CHANNELS];
+            let mut count = 0;
+            for n in bits(trusted) {
+                if let (Some(slot), Some(&e)) = (picked.get_mut(count), errs.get(n)) {
+                    *slot = e;
+                    count += 1;
+                }
             }
-        }
-        let picked = picked.get_mut(..count).unwrap_or_default();
-        if count > 1 {
-            picked.sort_unstable();
-        }
-        let Some(&err) = picked.get(count / 2) else {
-            self.lose(sink);
-            return;
+            let picked = picked.get_mut(..count).unwrap_or_default();
+            if count > 1 {
+                picked.sort_unstable();
+            }
+            let Some(&err) = picked.get(count / 2) else {
+                self.lose(sink);
+                return;
+            };
+            err
         };
         if !self.timing.advance(err) {
             self.lose(sink);
@@ -1106,7 +1124,7 @@ impl HansRx {
         self.late = self.latest();
         // Keep the reference while it verifies and has its edge; otherwise the first
         // channel that does, or at least has an edge.
-        if trusted & (1 << self.reference) == 0 {
+        if trusted & reference == 0 {
             self.reference = trusted.trailing_zeros() as usize;
         }
         if verified == 0 {

@@ -8,9 +8,6 @@ use crate::hans::rx::gap::MAX_COAST;
 
 /// Words in one DMA half as the firmware feeds the receiver.
 const DMA_HALF: usize = 512;
-/// Frames a relock may lose beyond the gap's: the hunt (two start edges and the
-/// frame between) and a fresh lock's first frames, which publish nothing.
-const RELOCK: usize = 16;
 
 /// A modelled line: frames sent back to back, sampled at `ratio` samples per bit
 /// from `phase` bits into the stream, every bit edge moved by up to `jitter` bits.
@@ -287,16 +284,6 @@ fn coasting_under_jitter_and_offset() {
                     let label = format!("{hz} Hz {offset} {halves} halves {mode:?}");
                     let mut rx = HansRx::new(hz, mode).unwrap();
                     let got = s.indices(&feed(&mut rx, &s.words, &[(g0, g1 - g0)], 64));
-                    // Known limit (README "What is left (issue 6)", CPU bullet): a
-                    // multi-channel lock tracks its rate too loosely to be sure to
-                    // coast at ±25 % jitter past the tail confirmation (seen at 37.5,
-                    // 40 and 50 MHz since the hunt's lock hand-over); there one relock
-                    // (a hunt and a fresh lock's unpublished frames) is allowed, an
-                    // unsent frame, a frame of the gap or out of order still never is.
-                    if matches!(mode, Mode::Super) {
-                        check_gap(&s, &got, (g0, g1), RELOCK, &label);
-                        continue;
-                    }
                     let (_, late) = check_gap(&s, &got, (g0, g1), 0, &label);
                     assert!(late <= 3, "{label}: resumed {late} frames late");
                     late_total += late;
@@ -351,6 +338,87 @@ fn coast_bound_holds_on_settled_locks() {
             );
             assert!(worst[3] < 0.25, "{hz} Hz {offset}: {worst:?}");
             assert!(worst[0] < 0.15, "{hz} Hz {offset}: {worst:?}");
+        }
+    }
+}
+
+/// The rate a coast predicts with, in every mode: on five channels with their own
+/// ±25 % jitter and up to ±2 samples of skew at 3x with a ±1 % offset, the
+/// modes that decode several channels track the frame period as closely as one
+/// channel does (normal mode). They time on their reference channel alone, as
+/// normal mode does on its one; when every eighth frame's remeasure of all
+/// channels moved the timing and every delay (the reference's too) toward the
+/// channels' median instead, the delays' common part wandered with the jitter
+/// and the rate with it: rms ~2e-3 bit a frame, 6.6e-3 at worst in vote5 /
+/// super, against 2.5e-4 / 7e-4 in normal mode. Prints the measured errors.
+#[test]
+fn every_mode_tracks_the_rate_as_one_channel_does() {
+    const FRAMES: usize = 200;
+    // Settled (past the young fit) from about here on.
+    const FROM: f64 = 50.0;
+    let modes = [
+        Mode::Normal { channel: 1 },
+        Mode::Vote3 {
+            channels: [5, 1, 3],
+        },
+        Mode::Vote5,
+        Mode::Super,
+    ];
+    for offset in [-0.01, 0.01] {
+        let ratio = 3.0 / (1.0 + offset);
+        let mut rms = [0.0f64; 4];
+        let mut worst = [0.0f64; 4];
+        for (m, mode) in modes.into_iter().enumerate() {
+            let (mut sum2, mut n) = (0.0f64, 0usize);
+            for seed in 1..=12u32 {
+                let bits = line_bits(&frames(FRAMES, seed));
+                let words: Vec<Vec<u16>> = (0..5u32)
+                    .map(|c| {
+                        let skew = f64::from((c * 7 + seed) % 5) - 2.0;
+                        let jitter_seed = u64::from(seed * 8 + c);
+                        jittered(&bits, ratio, 1.0 - skew / ratio, 0.25, jitter_seed)
+                    })
+                    .collect();
+                let mut rx = HansRx::new(37_500_000, mode).unwrap();
+                let from = (FROM * frame_words(ratio)) as usize;
+                let mut last = 0u32;
+                let len = words[0].len();
+                for at in (0..len).step_by(4) {
+                    let parts: [&[u16]; 5] =
+                        std::array::from_fn(|c| &words[c][at..(at + 4).min(len)]);
+                    rx.push(&parts, &mut |_| {});
+                    let t = &rx.timing;
+                    if !rx.locked || t.young() || t.start == last || at < from {
+                        continue;
+                    }
+                    last = t.start;
+                    let err = (f64::from(t.period) / 65536.0 - 125.0 * ratio) / ratio;
+                    sum2 += err * err;
+                    n += 1;
+                    worst[m] = worst[m].max(err.abs());
+                }
+            }
+            assert!(n > 1_000, "{mode:?}: {n} settled frames");
+            rms[m] = (sum2 / n as f64).sqrt();
+        }
+        let show = |v: &[f64; 4]| v.map(|e| format!("{e:.1e}")).join(" / ");
+        println!(
+            "37.5 MHz, offset {offset:+}: rate error (bit a frame) normal / vote3 / vote5 / super: rms {}, worst {}",
+            show(&rms),
+            show(&worst)
+        );
+        // Measured: within 1.1x of normal mode but for one lock (seed 10 at +1 %)
+        // whose young fit switched its reference (the first one failed while
+        // others verified): the new one's young delay shifts the fit's later
+        // points against its earlier ones, and the filter still worked off the
+        // handed-over rate at frame 50 (2.3e-3 bit a frame). Before the reference
+        // timed alone: rms 4x..5x normal mode's, worst 5.3e-3.
+        for m in 1..modes.len() {
+            assert!(
+                rms[m] < 1.7 * rms[0] && worst[m] < 2.5e-3,
+                "{offset}: {:?}: rms {rms:?}, worst {worst:?}",
+                modes[m]
+            );
         }
     }
 }
