@@ -144,8 +144,8 @@ pub struct HansStatusRaw {
 pub static HANS_STATUS_RAW: Channel<CriticalSectionRawMutex, HansStatusRaw, 1> = Channel::new();
 
 /// Set by `status::hans_status` while its receiver's lock cannot coast across a
-/// skipped half yet (`shared::hans::follow::Follow::coasts`: from a new receiver
-/// until a run of frames has left the young fit): `line::hans_status_in` then
+/// skipped half yet (`HansRx::coasts`: from a new receiver until its lock's
+/// young fit is in its last frames): `line::hans_status_in` then
 /// passes on every half, not only every `line::hans_status_every`-th, so that an
 /// acquisition is not cut short by the halves in between. Set from reset on.
 pub static HANS_STATUS_CONTIGUOUS: AtomicBool = AtomicBool::new(true);

@@ -158,7 +158,7 @@ pub async fn status_level_out(pin: Output<'static>, level: StatusLevel) {
 /// running the young fit, the receiver's most expensive state, all over again. A
 /// new session (SPI6 lost words) or a gap beyond `HansRx::max_gap_words` starts a
 /// fresh receiver. A young lock cannot coast (it is dropped at a gap), so while
-/// the receiver has not published a run of frames yet (`Follow::coasts`) the task
+/// the receiver's lock cannot coast yet (`HansRx::coasts`) the task
 /// asks for every half ([`HANS_STATUS_CONTIGUOUS`]): an acquisition takes about two
 /// contiguous halves, then the pairing's every second half resumes. The governor
 /// decodes a half only with spare credit, so the controller input decoder keeps
@@ -203,7 +203,6 @@ pub async fn hans_status() {
                 &mut |ev| count(&ev),
             );
             rx.push(&[&raw.words], &mut |ev| {
-                follow.observe(&ev);
                 count(&ev);
                 if let RxEvent::Frame(frame) = ev {
                     receiver.apply(&frame, &mut status);
@@ -212,7 +211,7 @@ pub async fn hans_status() {
             })
         });
         busy.report(Class::Optional);
-        HANS_STATUS_CONTIGUOUS.store(!follow.coasts(), Ordering::Relaxed);
+        HANS_STATUS_CONTIGUOUS.store(!rx.coasts(), Ordering::Relaxed);
         if frames > 0 {
             HEAD_STATUS.sender().send(status.clone());
         }

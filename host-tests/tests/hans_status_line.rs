@@ -106,11 +106,8 @@ fn decode(words: &[u16], sent: &[Frame], follow_signal: bool) -> Vec<Half> {
         } else {
             rx = fresh().unwrap();
         }
-        rx.push(&[&words[from..from + HALF]], &mut |e| {
-            follow.observe(&e);
-            events.push(e);
-        });
-        contiguous = follow_signal && !follow.coasts();
+        rx.push(&[&words[from..from + HALF]], &mut |e| events.push(e));
+        contiguous = follow_signal && !rx.coasts();
         let mut frames = Vec::new();
         let mut lost_lock = false;
         for e in events {

@@ -22,21 +22,9 @@
 //! Whether a lock coasts is the receiver's decision ([`super::rx::gap`]): a young
 //! one does not, it is dropped and the hunt starts after the gap. A caller that
 //! decodes only every second block must therefore see contiguous blocks until its
-//! lock has left the young fit; [`Follow::coasts`] says when, from the events the
-//! receiver reported (see there).
+//! lock has left the young fit; [`HansRx::coasts`] says when.
 
-use super::rx::timing::{SETTLED, YOUNG};
 use super::rx::{HansRx, RxEvent};
-use crate::model::FaultKind;
-
-/// Frames published in a row, without a resync or missing period, after which
-/// the lock has surely left the young fit: a lock publishes nothing before it has
-/// measured [`SETTLED`] start edges, and every frame period after that adds one
-/// to its young fit's count, so this many published frames (whether or not other
-/// periods failed in between) bring the count to [`YOUNG`]. An estimate from the
-/// outside of the receiver, which errs towards asking for more input: a lock
-/// coasts from two frames before (`timing::RECENTRE`).
-pub const SETTLED_RUN: u32 = YOUNG.abs_diff(SETTLED) + 1;
 
 /// What to do with a block before pushing it (see the module docs).
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -66,15 +54,12 @@ pub struct Follow {
     /// The session of the last block and the first word the next one must have
     /// to continue it; `None` before the first block.
     next: Option<(u32, u32)>,
-    /// Frames published in a row since the receiver started, or last reported a
-    /// resync or a missing period (saturating).
-    run: u32,
 }
 
 impl Follow {
     /// Nothing decoded yet.
     pub const fn new() -> Follow {
-        Follow { next: None, run: 0 }
+        Follow { next: None }
     }
 
     /// The step for a block of `words` words per channel starting at word
@@ -114,44 +99,13 @@ impl Follow {
         let step = self.step(session, first_word, words, rx.max_gap_words());
         match step {
             Step::Push => {}
-            Step::Skip(gap) => rx.skip(gap, &mut |ev| {
-                self.observe(&ev);
-                sink(ev);
-            }),
-            Step::First | Step::Fresh => {
-                self.run = 0;
-                match fresh() {
-                    Some(new) => *rx = new,
-                    None => rx.skip(u32::MAX, &mut |ev| {
-                        self.observe(&ev);
-                        sink(ev);
-                    }),
-                }
-            }
+            Step::Skip(gap) => rx.skip(gap, sink),
+            Step::First | Step::Fresh => match fresh() {
+                Some(new) => *rx = new,
+                None => rx.skip(u32::MAX, sink),
+            },
         }
         step
-    }
-
-    /// Takes note of an event of the receiver for [`Follow::coasts`]: a frame
-    /// extends the run, a resync or a missing period (the lock, or the channel,
-    /// lost) ends it.
-    pub fn observe(&mut self, ev: &RxEvent) {
-        match ev {
-            RxEvent::Frame(_) => self.run = self.run.saturating_add(1),
-            RxEvent::Fault {
-                kind: FaultKind::Resync | FaultKind::Missing,
-                ..
-            } => self.run = 0,
-            RxEvent::Fault { .. } => {}
-        }
-    }
-
-    /// True once the receiver has published [`SETTLED_RUN`] frames in a row (see
-    /// [`Follow::observe`]) since it started: its lock has left the young fit and
-    /// coasts across a gap within [`HansRx::max_gap_words`]. Before that, a gap
-    /// would cost the lock (a new hunt, a new young fit).
-    pub fn coasts(&self) -> bool {
-        self.run >= SETTLED_RUN
     }
 }
 
@@ -159,7 +113,6 @@ impl Follow {
 mod tests {
     use super::*;
     use crate::hans::rx::Mode;
-    use crate::hans::Frame;
 
     const MAX: u32 = 2_970;
     const HALF: u32 = 512;
@@ -256,39 +209,5 @@ mod tests {
         let mut forgot = used();
         forgot.skip(u32::MAX, &mut |_| {});
         assert_eq!(r, forgot);
-    }
-
-    #[test]
-    fn coasts_after_a_run_of_published_frames() {
-        let frame = RxEvent::Frame(Frame::CENTRE);
-        let fault = |kind| RxEvent::Fault {
-            channel: Some(1),
-            kind,
-        };
-        let mut f = Follow::new();
-        f.apply(&mut rx(), 0, 0, HALF, || Some(rx()), &mut |_| {});
-        for _ in 1..SETTLED_RUN {
-            f.observe(&frame);
-        }
-        // A check failure does not end the run (the lock holds)...
-        f.observe(&fault(FaultKind::CheckFailed));
-        assert!(!f.coasts());
-        f.observe(&frame);
-        assert!(f.coasts());
-        // ...a resync or a missing period does.
-        for kind in [FaultKind::Resync, FaultKind::Missing] {
-            f.observe(&fault(kind));
-            assert!(!f.coasts());
-            for _ in 0..SETTLED_RUN {
-                f.observe(&frame);
-            }
-            assert!(f.coasts());
-        }
-        // A skip keeps it; a new receiver starts over.
-        let mut r = rx();
-        f.apply(&mut r, 0, 2 * HALF, HALF, || panic!(), &mut |_| {});
-        assert!(f.coasts());
-        f.apply(&mut r, 1, 0, HALF, || Some(rx()), &mut |_| {});
-        assert!(!f.coasts());
     }
 }

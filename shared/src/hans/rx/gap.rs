@@ -153,6 +153,16 @@ impl HansRx {
         self.gaps.skipped
     }
 
+    /// True when a gap within [`HansRx::max_gap_words`] would be coasted across: a
+    /// lock whose rate is known well enough to predict over it (its young fit in
+    /// its last frames or done, `Timing::coasts`). Before that, [`HansRx::skip`]
+    /// drops the lock, and the hunt and the young fit start again after the gap,
+    /// so a caller that decodes only some blocks passes on every block until then
+    /// (the head STATUS input, `shared::hans::follow`).
+    pub fn coasts(&self) -> bool {
+        self.locked && self.timing.coasts()
+    }
+
     /// The longest gap (words per channel) a settled lock coasts across wherever it
     /// falls against the frames: [`MAX_COAST`] frame periods, less the partial and
     /// pending frames at its ends, at the shortest period the timing accepts

@@ -607,3 +607,43 @@ fn skipping_while_hunting_counts_nominal_periods() {
     let got = s.indices(&feed(&mut rx, &s.words, &[], 64));
     assert!(got[0] <= LOCK, "{got:?}");
 }
+
+/// `HansRx::coasts` says exactly what `skip` does with a gap within
+/// `max_gap_words`: after every chunk of a clean lock's life (hunt, young fit,
+/// settled), a copy skipping a gap keeps the lock when it says so and drops it
+/// (a resync) otherwise; it turns true once the young fit is in its last frames
+/// and stays so.
+#[test]
+fn coasts_says_what_a_skip_does() {
+    let s = Stream::new(60, 7, 3.2, 0.3, 0.0);
+    let mut rx = HansRx::new(40_000_000, Mode::Normal { channel: 1 }).unwrap();
+    let mut became = None;
+    for (k, part) in s.words.chunks(16).enumerate() {
+        rx.push(&[part; 5], &mut |_| {});
+        let mut copy = rx.clone();
+        let mut dropped = false;
+        copy.skip(100, &mut |e| {
+            dropped |= matches!(
+                e,
+                RxEvent::Fault {
+                    kind: FaultKind::Resync,
+                    ..
+                }
+            )
+        });
+        assert_eq!(rx.coasts(), rx.locked && !dropped, "chunk {k}");
+        assert_eq!(copy.locked, rx.coasts(), "chunk {k}");
+        match (became, rx.coasts()) {
+            (None, true) => became = Some(k),
+            (Some(_), false) => panic!("chunk {k}: coasting stopped on a clean line"),
+            _ => {}
+        }
+    }
+    // Not before the lock has published (frame 8 of the lock, about 10 frames of
+    // 125 bits at 3.2 samples, 25 words each), and well within the stream.
+    let became = became.expect("a clean line's lock coasts");
+    assert!((10 * 25 / 16..50 * 25 / 16).contains(&became), "{became}");
+    // A gap beyond the bound drops the lock.
+    rx.skip(rx.max_gap_words() * 2, &mut |_| {});
+    assert!(!rx.coasts());
+}
