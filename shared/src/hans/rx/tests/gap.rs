@@ -620,7 +620,7 @@ fn coasts_says_what_a_skip_does() {
     let mut became = None;
     for (k, part) in s.words.chunks(16).enumerate() {
         rx.push(&[part; 5], &mut |_| {});
-        let mut copy = rx.clone();
+        let mut copy = rx;
         let mut dropped = false;
         copy.skip(100, &mut |e| {
             dropped |= matches!(
