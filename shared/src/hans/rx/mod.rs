@@ -1066,8 +1066,8 @@ impl HansRx {
         } else {
             found
         };
-        let err = if trusted & reference != 0 {
-            // A trusted reference times the frame alone, as on every frame the
+        let err = if trusted & verified & reference != 0 {
+            // A verified reference times the frame alone, as on every frame the
             // others are not measured: its delay (its deviation from its own
             // edge) then stays put and anchors every other delay, and the timing
             // follows one channel's edges as in normal mode. A consensus of
