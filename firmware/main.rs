@@ -249,7 +249,7 @@ async fn main(spawner: Spawner) {
                 bridge_hans::bridge_hans_out(r.hans_out, config, roles.controller, head_enable);
             high.spawn(hans.unwrap());
             if let Some(fs) = fs_status {
-                let every = line::hans_status_every(hans_ctrl);
+                let every = shared::hans::follow::status_every(hans_ctrl);
                 defmt::info!("hans status in: every {} half decoded", every);
                 high.spawn(line::hans_status_in(r.hans_status_in, fs, every).unwrap());
             }

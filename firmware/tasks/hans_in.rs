@@ -134,11 +134,17 @@ async fn hans_session(
 /// a gap beyond `HansRx::max_gap_words` starts a fresh receiver.
 #[embassy_executor::task]
 pub async fn hans_decode(mode: Mode) {
-    let fresh = || HansRx::new(HANS_FS_HZ, mode).ok();
-    let Some(mut rx) = fresh() else {
-        // Not reachable: the configuration was validated and fs is in range.
-        defmt::error!("hans decode: no receiver; no controller input");
-        return;
+    // The one constructor: the first receiver here, every fresh one in
+    // `Follow::apply`.
+    let fresh = || HansRx::new(HANS_FS_HZ, mode);
+    let mut rx = match fresh() {
+        Ok(rx) => rx,
+        Err(e) => {
+            // Not expected (the configuration was validated and fs is in range);
+            // without a decoder the bridge sees no input and keeps the gate off.
+            defmt::error!("hans decode: {}; no controller input", e);
+            return;
+        }
     };
     let mut follow = Follow::new();
     let mut events: Vec<(u32, LineEvent), CHUNK_EVENTS> = Vec::new();

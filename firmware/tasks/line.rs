@@ -13,6 +13,7 @@ use embassy_time::Instant;
 
 use super::ctrl_word::{self, CtrlWord};
 use super::Irqs;
+
 use crate::board::{HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes};
 use crate::channels::{
     HansStatusRaw, RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_CONTIGUOUS, HANS_STATUS_RAW,
@@ -31,6 +32,7 @@ use embassy_stm32::peripherals::{
 };
 use embassy_stm32::spi::{CsPin, MosiPin, RxDma, SckPin};
 use shared::bridge::Xy2Controller;
+use shared::hans::follow;
 use shared::model::Axis;
 use shared::xy3::rx::Lines;
 use static_cell::StaticCell;
@@ -269,52 +271,11 @@ async fn xy3_session(
     }
 }
 
-/// Every how many SPI6 halves one goes to the STATUS decoder, by what else the
-/// decode executor carries. `shared`'s HANS-100 receiver costs ~1 950 instructions
-/// per frame on one channel as the firmware feeds it (QEMU, README "Measured
-/// figures"): 41 % of the 4 800 cycles of a 10 us frame at one instruction a cycle.
-/// * Without a HANS-100 controller: **every half** (1). The decoder is then the
-///   decode executor's only work; the line executor (an XY2-100 or XY3-100 receiver,
-///   the bridge, the HANS-100 slot updates: ~1 450 a frame, 30 %) preempts it, so it
-///   is busy ~58 % of the time, under the governor's 90 %
-///   (`governor::SHARE_PERMILLE`). Consecutive halves are contiguous signal, so one
-///   receiver runs on and every frame is decoded.
-/// * With a HANS-100 controller (HANS-100 -> HANS-100): **every second half** (2).
-///   Its input decoder takes 41 % in normal mode and the line executor ~17 %
-///   (bridge, slot updates, HANS STATUS out); the STATUS decoder adds ~22 %: the
-///   decode executor is busy ~75 % of the time, under the 90 %. Every half (81 % +
-///   17 %, busy ~98 %) would not fit. One receiver follows the signal across the
-///   halves in between (`shared::hans::follow`, `HansRx::skip`): its settled lock
-///   coasts over each skipped half and publishes from the second frame wholly in
-///   the next one, so the head's status is at most two halves (410 us) plus a
-///   decode old. The ~22 % is a half after a skipped one: 43 369 instructions
-///   (QEMU bench row "hans rx: STATUS half, after a skipped half": the settled
-///   cost and two re-centring frames at the young fit's) per 410 us. Before, each
-///   half decoded was a new receiver, a hunt and then young-fit frames only (a
-///   half is 20.5 frames, the young fit 32), the receiver's most expensive state:
-///   99 773 ("new receiver"), ~51 %, which did not fit beside the input decoder.
-///   A lock that cannot coast yet (a new receiver, or one that lost its lock) gets
-///   every half ([`HANS_STATUS_CONTIGUOUS`], about two halves per acquisition,
-///   over the share while they last: a half the governor drops then costs the
-///   young lock, which hunts again on the next, as before). With vote3 (~65 %)
-///   the two together are over the share, and vote5 / super alone: the governor
-///   drops STATUS halves first (optional work) but decodes one at least every
-///   1.6 ms (a gap of up to ~5.8 halves is coasted across, a longer one starts a
-///   new receiver).
-///
-/// Below ~1 700 instructions per frame (busy ~85 %), 1 fits both pairings.
-pub const fn hans_status_every(hans_controller: bool) -> u32 {
-    if hans_controller {
-        2
-    } else {
-        1
-    }
-}
-
 /// HANS-100 STATUS input (head side): `fs` (TIM3 CH2) is the oversampling clock that
 /// clocks SPI6 through a wire from PC7 to PB3; SPI6 receives 16-bit words into a
-/// BDMA ring in SRAM4. Every `every`-th half ([`hans_status_every`]), and every
-/// half while [`HANS_STATUS_CONTIGUOUS`] asks for it, goes to the STATUS decoder in
+/// BDMA ring in SRAM4. Every `every`-th half (`shared::hans::follow::status_every`),
+/// and every half while [`HANS_STATUS_CONTIGUOUS`] asks for it, goes to the STATUS
+/// decoder (`follow::status_passes`, the rule the host pipeline runs too) in
 /// the decode executor (`status::hans_status`, via [`HANS_STATUS_RAW`]), numbered
 /// so the decoder knows how many words lie between two halves, in a session that
 /// changes when words were lost (an overrun: how many is not known).
@@ -332,7 +293,6 @@ pub async fn hans_status_in(r: HansStatusInRes, fs: Fs, every: u32) {
             return;
         }
     };
-    let every = every.max(1);
     let mut raw = HansStatusRaw {
         session: 0,
         half: 0,
@@ -345,8 +305,8 @@ pub async fn hans_status_in(r: HansStatusInRes, fs: Fs, every: u32) {
                 Stats::bump(&STATS.input_halves);
                 raw.half = raw.half.wrapping_add(1);
                 raw.ready = Instant::now().as_ticks();
-                let wanted = raw.half.is_multiple_of(every)
-                    || HANS_STATUS_CONTIGUOUS.load(Ordering::Relaxed);
+                let contiguous = HANS_STATUS_CONTIGUOUS.load(Ordering::Relaxed);
+                let wanted = follow::status_passes(raw.half, every, contiguous);
                 // A full queue means the decoder is still on the last one: skip.
                 if wanted && HANS_STATUS_RAW.try_send(raw.clone()).is_err() {
                     Stats::bump(&STATS.input_overruns);

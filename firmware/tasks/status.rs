@@ -143,7 +143,7 @@ pub async fn status_level_out(pin: Output<'static>, level: StatusLevel) {
 
 /// HANS-100 STATUS from the head (decode executor, optional work for the load
 /// governor): decodes the SPI6 halves `line::hans_status_in` passes on (every
-/// `line::hans_status_every`-th) with `shared::hans::rx::HansRx`, applies every frame
+/// `shared::hans::follow::status_every`-th) with `shared::hans::rx::HansRx`, applies every frame
 /// that passed its checks through `shared::hans::StatusReceiver` and publishes the
 /// head's status to [`HEAD_STATUS`] when a half gave at least one frame (the bridge
 /// counts that as the status being seen). Frames that failed a check are counted
@@ -166,13 +166,19 @@ pub async fn status_level_out(pin: Output<'static>, level: StatusLevel) {
 #[embassy_executor::task]
 pub async fn hans_status() {
     let mode = HansMode::Normal { channel: 1 };
-    let fresh = || HansRx::new(HANS_FS_HZ, mode).ok();
+    // The one constructor: the first receiver here, every fresh one in
+    // `Follow::apply`.
+    let fresh = || HansRx::new(HANS_FS_HZ, mode);
     let mut receiver = StatusReceiver::new();
     let mut status = HeadStatus::default();
-    let Some(mut rx) = fresh() else {
-        // Not reachable: channel 1 and the 40 MHz fs are valid.
-        defmt::error!("hans status: no receiver");
-        return;
+    let mut rx = match fresh() {
+        Ok(rx) => rx,
+        Err(e) => {
+            // Not expected (channel 1 and the 40 MHz fs are valid); without it
+            // the head's status is never seen and the bridge reports it lost.
+            defmt::error!("hans status: {}; no head status", e);
+            return;
+        }
     };
     let mut follow = Follow::new();
     let count = |ev: &RxEvent| {

@@ -1,10 +1,11 @@
 //! The head's HANS-100 STATUS line as the firmware decodes it beside a HANS-100
 //! controller: SPI6 halves of `HANS_HALF` words at `HANS_FS_HZ`, only every second
-//! one passed on (`line::hans_status_every`), each decoded by one receiver that
+//! one passed on (`shared::hans::follow::status_every`), each decoded by one receiver that
 //! follows the signal across the halves in between (`shared::hans::follow`, the
 //! rule `status::hans_status` and `hans_in::hans_decode` share), every half passed
 //! on while the receiver asks for it (`HANS_STATUS_CONTIGUOUS`: its lock cannot
-//! coast yet).
+//! coast yet; `follow::status_passes`, which `line::hans_status_in` asks). The
+//! host pipeline runs the same path (`pipeline_hans_status`).
 //!
 //! Checks, on a line with the spec's ±25 % jitter and ±1 % rate offset: after the
 //! acquisition (at most the first three halves) only every second half is
@@ -22,7 +23,7 @@ use host_tests::line::sample::Oversampler;
 use host_tests::wave::{Ps, Waveform};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use shared::hans::follow::Follow;
+use shared::hans::follow::{self, Follow};
 use shared::hans::rx::{HansRx, Mode, RxEvent};
 use shared::hans::{Frame, FRAME_BITS, WORD_MAX};
 use shared::model::FaultKind;
@@ -31,8 +32,8 @@ use shared::model::FaultKind;
 const FS_HZ: u32 = 40_000_000;
 /// `firmware/channels.rs` `HANS_HALF`: 16-bit words per SPI6 DMA half (205 us).
 const HALF: usize = 512;
-/// `line::hans_status_every` beside a HANS-100 controller.
-const EVERY: u32 = 2;
+/// Every how many halves beside a HANS-100 controller.
+const EVERY: u32 = follow::status_every(true);
 /// Halves of the run (the firmware numbers them from 1).
 const HALVES: u32 = 16;
 /// When the first frame starts.
@@ -87,13 +88,13 @@ struct Half {
 /// [`EVERY`]-th half). The decoder keeps up (its request is seen by the next
 /// half). Frames are matched to `sent`; a frame never sent fails the test.
 fn decode(words: &[u16], sent: &[Frame], follow_signal: bool) -> Vec<Half> {
-    let fresh = || HansRx::new(FS_HZ, Mode::Normal { channel: 1 }).ok();
+    let fresh = || HansRx::new(FS_HZ, Mode::Normal { channel: 1 });
     let mut rx = fresh().unwrap();
     let mut follow = Follow::new();
     let mut contiguous = follow_signal;
     let mut halves = Vec::new();
     for number in 1..=HALVES {
-        if !(number.is_multiple_of(EVERY) || contiguous) {
+        if !follow::status_passes(number, EVERY, contiguous) {
             continue;
         }
         let from = (number - 1) as usize * HALF;
@@ -247,4 +248,93 @@ fn every_second_half_is_decoded_without_a_new_lock() {
     // A new receiver hunts (1-2 frames) and publishes from its 8th settled start
     // edge on; the coasting one from the second frame wholly in the half.
     assert!(now >= before + 5.0, "{now:.2} against {before:.2}");
+}
+
+/// The host pipeline takes the head's STATUS words as the firmware does: in
+/// halves, every second one beside a HANS-100 controller once the lock can coast
+/// (`follow::status_passes`), one receiver following the signal across. Fed in
+/// chunks of any size, it decodes exactly the halves `decode` (the firmware's
+/// path above) does and publishes exactly their frames: each one sent, in order,
+/// none from a half not decoded; and its counters count them.
+#[test]
+fn pipeline_hans_status() {
+    use host_tests::pipeline::{HeadStatusInput, Options, Pipeline, HANS_STATUS_HALF};
+    use shared::bridge::{Config, Protocol};
+    assert_eq!(HANS_STATUS_HALF, HALF);
+    let mut rng = ChaCha8Rng::seed_from_u64(61);
+    let (mut runs, mut published, mut decoded) = (0usize, 0usize, 0usize);
+    for offset in [-1.0, 0.0, 1.0] {
+        for jitter in [0.0, 0.25] {
+            for _ in 0..4 {
+                let seed: u64 = rng.random();
+                let n = (HALVES as usize * HALF * 16 * 12_500_000 / FS_HZ as usize) / 125 + 16;
+                let sent: Vec<Frame> = (0..n)
+                    .map(|_| {
+                        let mut w = || rng.random_range(0..=WORD_MAX);
+                        Frame::new(w(), w(), w()).unwrap()
+                    })
+                    .collect();
+                let words = capture(&sent, offset, jitter, seed);
+                let words = &words[..HALVES as usize * HALF];
+                let at = format!("{offset} %, ±{jitter} bit, seed {seed}");
+                let want = decode(words, &sent, true);
+
+                let mut c = Config::default();
+                c.controller.protocol = Protocol::Hans;
+                c.head.protocol = Protocol::Hans;
+                let options = Options {
+                    hans_status_sample_hz: FS_HZ,
+                    ..Options::default()
+                };
+                let mut p = Pipeline::new(&c, options).unwrap();
+                // Chunks of 1..=700 words: halves end inside chunks, some chunks
+                // complete two.
+                let (mut fed, mut t_ns) = (0, 0u64);
+                while fed < words.len() {
+                    let to = (fed + rng.random_range(1..=700)).min(words.len());
+                    t_ns += 1_000;
+                    p.feed_status(t_ns, HeadStatusInput::HansStatus(&words[fed..to]))
+                        .unwrap();
+                    fed = to;
+                }
+                let got = p.hans_status_halves();
+                let numbers = |h: &[_]| -> Vec<u32> {
+                    h.iter()
+                        .map(|h: &host_tests::pipeline::HansStatusHalf| h.number)
+                        .collect()
+                };
+                let want_numbers: Vec<u32> = want.iter().map(|h| h.number).collect();
+                assert_eq!(numbers(got), want_numbers, "{at}: halves decoded");
+                // After the acquisition only every second half: 16 halves, 8 even.
+                let asked = got.iter().filter(|h| h.asked).count();
+                assert!((1..=2).contains(&asked), "{at}: {asked} halves asked for");
+                assert_eq!(got.len(), 8 + asked, "{at}");
+                assert!(got
+                    .iter()
+                    .all(|h| h.asked != h.number.is_multiple_of(EVERY)));
+                let mut total = 0;
+                for (g, w) in got.iter().zip(&want) {
+                    let frames: Vec<Frame> = w.frames.iter().map(|&k| sent[k]).collect();
+                    assert_eq!(g.frames, frames, "{at}, half {}", g.number);
+                    total += g.frames.len();
+                }
+                // Every decoded half after the first publishes (a settled lock
+                // resumes within two frames of the half's first whole one).
+                assert!(got[1..].iter().all(|h| h.frames.len() >= 15), "{at}");
+                let k = p.counters();
+                assert_eq!(k.status_items, total as u64, "{at}");
+                // Measured: none in these 24 runs (the firmware-path test above lost one
+                // frame to a failed check in 672 halves).
+                assert!(k.status_faults <= 2, "{at}: {k:?}");
+                published += total;
+                decoded += got.len();
+                runs += 1;
+            }
+        }
+    }
+    println!(
+        "pipeline: {runs} runs, {decoded} halves of {} decoded, {published} frames published ({:.2} a half)",
+        runs * HALVES as usize,
+        published as f64 / decoded as f64
+    );
 }

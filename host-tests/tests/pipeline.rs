@@ -912,10 +912,26 @@ fn head_status_disappears_and_returns() {
         );
         // The gate: on after start-up, off at last status + timeout, on again when
         // the status is back.
-        // The last status item before the silence (HANS-100: the stream's end; the
-        // sampler's words run on for 2 us of idle line).
+        // The last status item before the silence (HANS-100: the last half with
+        // frames, taken as the firmware takes them: the half that holds the
+        // stream's end is completed only by the words after the silence).
         let last_status = match head {
-            Protocol::Hans => 8_000_000,
+            Protocol::Hans => {
+                let halves = p.hans_status_halves();
+                let last = halves
+                    .iter()
+                    .filter(|h| h.t_ns < 9_000_000 && !h.frames.is_empty())
+                    .map(|h| h.t_ns)
+                    .max()
+                    .unwrap();
+                // Within a half (205 us) of the stream's end: every half is decoded
+                // (no HANS-100 controller here).
+                assert!(
+                    (8_000_000 - 205_000..=8_000_000).contains(&last),
+                    "{label}: {last}"
+                );
+                last
+            }
             _ => status_times
                 .iter()
                 .filter(|&&t| t < 9_000_000)

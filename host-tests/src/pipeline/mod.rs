@@ -71,6 +71,7 @@ use std::fmt;
 
 pub use self::core::Core;
 pub use ctrl_status::{BackByte, ControllerStatus};
+pub use head_status::{HansStatusHalf, HANS_STATUS_HALF};
 pub use output::{HeadOutput, SentFrame, HEAD_PINS_XY2, HEAD_PINS_XY3};
 
 use shared::bridge::{Bridge, Config, ConfigError, Counters, LinkState};
@@ -183,7 +184,10 @@ pub enum HeadStatusInput<'a> {
     Xy2Word(&'a [u16]),
     /// XY3-100 backchannel bytes from the UART.
     Xy3Back(&'a [u8]),
-    /// HANS-100 STATUS line: `u16` ring words of its oversampling SPI.
+    /// HANS-100 STATUS line: `u16` ring words of its oversampling SPI, one stream
+    /// across calls, taken in [`HANS_STATUS_HALF`]-word halves as the firmware
+    /// does (every half, or every second one beside a HANS-100 controller once
+    /// the receiver's lock can coast: `shared::hans::follow::status_passes`).
     HansStatus(&'a [u16]),
 }
 
@@ -259,6 +263,12 @@ impl Pipeline {
     /// The pipeline's own counters.
     pub fn counters(&self) -> &PipelineCounters {
         self.core.counters()
+    }
+
+    /// The halves of a HANS-100 head's STATUS input that were decoded, with the
+    /// frames each published (none for other heads).
+    pub fn hans_status_halves(&self) -> &[HansStatusHalf] {
+        self.head_status.hans_halves()
     }
 
     /// The head-side output so far (a copy of the buffers).
