@@ -139,16 +139,17 @@ pub struct HansStatusRaw {
 
 /// HANS STATUS halves to `status::hans_status` (decode executor, under the
 /// [`DECODE_GOVERNOR`] as optional work). Only every
-/// `shared::hans::follow::status_every`-th half is sent (every half while [`HANS_STATUS_CONTIGUOUS`] asks for it); a full
-/// queue drops the half (counted in `input_overruns`).
+/// `shared::hans::follow::status_every`-th half is sent (every half while
+/// [`HANS_STATUS_CONTIGUOUS`] asks for it); a full queue drops the half (counted
+/// in `input_overruns`).
 pub static HANS_STATUS_RAW: Channel<CriticalSectionRawMutex, HansStatusRaw, 1> = Channel::new();
 
 /// Set by `status::hans_status` while its receiver's lock cannot coast across a
 /// skipped half yet (`HansRx::coasts`: from a new receiver until its lock's
 /// young fit is in its last frames): `line::hans_status_in` then
 /// passes on every half, not only every `follow::status_every`-th
-/// (`shared::hans::follow::status_passes`), so that an
-/// acquisition is not cut short by the halves in between. Set from reset on.
+/// (`shared::hans::follow::status_passes`), so that an acquisition is not cut
+/// short by the halves in between. Set from reset on.
 pub static HANS_STATUS_CONTIGUOUS: AtomicBool = AtomicBool::new(true);
 
 /// Backchannel rate to switch the controller side (UART7 TX) to (XY3-100 §6):

@@ -13,7 +13,6 @@ use embassy_time::Instant;
 
 use super::ctrl_word::{self, CtrlWord};
 use super::Irqs;
-
 use crate::board::{HansStatusInRes, SpiLineRes, Xy2InRes, Xy3InRes};
 use crate::channels::{
     HansStatusRaw, RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_CONTIGUOUS, HANS_STATUS_RAW,
