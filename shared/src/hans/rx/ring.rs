@@ -71,6 +71,14 @@ fn pair(&[x, y]: &[u16; 2]) -> u32 {
     (u32::from(x) | u32::from(y) << 16).rotate_right(16)
 }
 
+/// Stores the windows of `src` into `dst` from its start.
+#[inline(always)]
+fn copy(dst: &mut [u32], src: &[[u16; 2]]) {
+    for (d, s) in dst.iter_mut().zip(src) {
+        *d = pair(s);
+    }
+}
+
 /// One channel's samples, stored as windows: slot `j % 32` holds window `j` (words
 /// `2j` and `2j + 1`), so reading a window is one load.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -101,7 +109,9 @@ impl Default for Ring {
 
 impl Ring {
     /// Stores `src` as stream words `at`, `at + 1`, ... (older words are
-    /// overwritten). Whole windows are written in one store.
+    /// overwritten). Whole windows are written in one store, in runs of slots up
+    /// to the ring's end, so the copy loop carries two pointers and no slot index
+    /// (~4 instructions a window).
     pub fn write(&mut self, at: u32, src: &[u16]) {
         let mut at = at;
         let mut src = src;
@@ -113,15 +123,17 @@ impl Ring {
             }
         }
         let (pairs, rest) = src.as_chunks::<2>();
-        let mut j = at >> 1;
-        for p in pairs {
-            if let Some(slot) = self.slot_mut(j) {
-                *slot = pair(p);
-            }
-            j = j.wrapping_add(1);
+        let j = at >> 1;
+        let t = j as usize % (RING_WORDS / 2);
+        // The slots up to the ring's end, then from its start (a lap or more
+        // overwrites in stream order, as one store after the other would).
+        let (head, more) = pairs.split_at(pairs.len().min(RING_WORDS / 2 - t));
+        copy(self.windows.get_mut(t..).unwrap_or_default(), head);
+        for lap in more.chunks(RING_WORDS / 2) {
+            copy(&mut self.windows, lap);
         }
         if let Some(&w) = rest.first() {
-            self.set_earlier(j, w);
+            self.set_earlier(j.wrapping_add(pairs.len() as u32), w);
         }
     }
 
