@@ -292,14 +292,17 @@ impl Ring {
         // one of the phase `skip` bit times earlier, minus those `skip` centres.
         let phase = first.wrapping_sub(j << (FRAC + 5));
         let skip = (phase / ratio.max(1)).min(12);
-        let e = &table
-            .entry(diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5)))
-            .a;
+        let ph0 = diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5));
+        // The centres from the entry's `skip`th on: those at its sample and after
+        // (one mask instead of clearing the first `skip` one by one).
+        let kept = if KEEP {
+            u32::MAX.checked_shr(table.centre(ph0, skip)).unwrap_or(0)
+        } else {
+            0
+        };
+        let e = &table.entry(ph0).a;
         let x = self.window(j);
-        let mut all = e.all;
-        for _ in 0..skip {
-            all &= !0x8000_0000u32.checked_shr(all.leading_zeros()).unwrap_or(0);
-        }
+        let all = e.all & kept;
         let n = e.count.saturating_sub(skip);
         let mut acc = Acc {
             words: [0; 4],
@@ -365,13 +368,15 @@ impl Ring {
         }
         // The last window: its first `left` centres.
         let x = self.window(j);
-        let mut all = e.all;
-        for _ in left.min(e.count)..e.count {
-            all &= all.wrapping_sub(1);
-        }
-        acc.push(e.bits(x, slots) & all_top(left), left.min(e.count));
-        if let (true, Some(w)) = (KEEP, centres.windows.get_mut(k)) {
-            *w = [all, x & all];
+        let (e_all, count) = (e.all, e.count);
+        acc.push(e.bits(x, slots) & all_top(left), left.min(count));
+        if KEEP {
+            // Those before the entry's `left`th centre's sample (all of them when
+            // the window has no more than `left`).
+            let all = e_all & !u32::MAX.checked_shr(table.centre(ph, left)).unwrap_or(0);
+            if let Some(w) = centres.windows.get_mut(k) {
+                *w = [all, x & all];
+            }
         }
         centres.count = k + 1;
         let [a, b, c, _] = acc.words;
