@@ -66,6 +66,20 @@ impl Channel {
         }
     }
 
+    /// [`Channel::track`] of a measurement equal to the delay (a lone verified
+    /// reference, whose own edge the shared timing follows): the step is zero, so
+    /// only the measurement is counted; no division.
+    pub fn hold(&mut self) -> bool {
+        let Some(d) = self.delay else { return false };
+        self.fits = (self.fits + 1).min(DELAY_FITS);
+        if (-DELAY_MAX..=DELAY_MAX).contains(&d) {
+            true
+        } else {
+            self.unalign();
+            false
+        }
+    }
+
     /// Moves the delay toward `measured`, the channel's start edge against the
     /// shared one (see the module docs). Returns false (and unaligns) if the channel
     /// drifted out of the plausible range.

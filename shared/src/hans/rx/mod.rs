@@ -1048,8 +1048,8 @@ impl HansRx {
                 self.channels.get_mut(self.reference),
                 self.stats.get_mut(self.reference),
             ) {
-                if let Some(d) = ch.delay {
-                    if !ch.track(d) {
+                if ch.delay.is_some() {
+                    if !ch.hold() {
                         stats.resyncs = stats.resyncs.wrapping_add(1);
                         sink(RxEvent::Fault {
                             channel: Some(number(self.reference)),
