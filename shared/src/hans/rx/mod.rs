@@ -1048,15 +1048,13 @@ impl HansRx {
                 self.channels.get_mut(self.reference),
                 self.stats.get_mut(self.reference),
             ) {
-                if ch.delay.is_some() {
-                    if !ch.hold() {
-                        stats.resyncs = stats.resyncs.wrapping_add(1);
-                        sink(RxEvent::Fault {
-                            channel: Some(number(self.reference)),
-                            kind: FaultKind::Resync,
-                        });
-                        self.late = self.latest();
-                    }
+                if ch.delay.is_some() && !ch.hold() {
+                    stats.resyncs = stats.resyncs.wrapping_add(1);
+                    sink(RxEvent::Fault {
+                        channel: Some(number(self.reference)),
+                        kind: FaultKind::Resync,
+                    });
+                    self.late = self.latest();
                 }
             }
             self.dry = 0;
