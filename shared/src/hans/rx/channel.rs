@@ -48,8 +48,13 @@ impl Channel {
     }
 
     /// True when the delay filter has settled (aligned and measured often enough).
+    /// `fits` alone says it: it is 0 whenever the channel is not aligned (`align`
+    /// and `unalign` set both, `track` counts only while aligned), so one compare
+    /// a channel, which the receiver pays for every channel and frame.
     pub fn settled(&self) -> bool {
-        self.delay.is_some() && self.fits >= DELAY_FITS
+        #[cfg(test)]
+        assert!(self.delay.is_some() || self.fits == 0, "{self:?}");
+        self.fits >= DELAY_FITS
     }
 
     /// Aligns the channel with its first measured delay.
@@ -58,6 +63,20 @@ impl Channel {
             self.delay = Some(delay);
             self.fits = 1;
             self.failures = 0;
+        }
+    }
+
+    /// [`Channel::track`] of a measurement equal to the delay (a lone verified
+    /// reference, whose own edge the shared timing follows): the step is zero, so
+    /// only the measurement is counted; no division.
+    pub fn hold(&mut self) -> bool {
+        let Some(d) = self.delay else { return false };
+        self.fits = (self.fits + 1).min(DELAY_FITS);
+        if (-DELAY_MAX..=DELAY_MAX).contains(&d) {
+            true
+        } else {
+            self.unalign();
+            false
         }
     }
 

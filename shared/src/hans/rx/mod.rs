@@ -1018,7 +1018,9 @@ impl HansRx {
         let mut errs = [0i32; CHANNELS];
         self.frames = self.frames.wrapping_add(1);
         let reference = 1u8 << self.reference;
-        let skip = if self.frames.is_multiple_of(REMEASURE) {
+        // No other channel matched (normal mode, or a frame they all differed
+        // on): none to skip, and the channels are not read.
+        let skip = if self.frames.is_multiple_of(REMEASURE) || same & !reference == 0 {
             0
         } else {
             let mut settled = 0u8;
@@ -1046,15 +1048,13 @@ impl HansRx {
                 self.channels.get_mut(self.reference),
                 self.stats.get_mut(self.reference),
             ) {
-                if let Some(d) = ch.delay {
-                    if !ch.track(d) {
-                        stats.resyncs = stats.resyncs.wrapping_add(1);
-                        sink(RxEvent::Fault {
-                            channel: Some(number(self.reference)),
-                            kind: FaultKind::Resync,
-                        });
-                        self.late = self.latest();
-                    }
+                if ch.delay.is_some() && !ch.hold() {
+                    stats.resyncs = stats.resyncs.wrapping_add(1);
+                    sink(RxEvent::Fault {
+                        channel: Some(number(self.reference)),
+                        kind: FaultKind::Resync,
+                    });
+                    self.late = self.latest();
                 }
             }
             self.dry = 0;

@@ -71,6 +71,14 @@ fn pair(&[x, y]: &[u16; 2]) -> u32 {
     (u32::from(x) | u32::from(y) << 16).rotate_right(16)
 }
 
+/// Stores the windows of `src` into `dst` from its start.
+#[inline(always)]
+fn copy(dst: &mut [u32], src: &[[u16; 2]]) {
+    for (d, s) in dst.iter_mut().zip(src) {
+        *d = pair(s);
+    }
+}
+
 /// One channel's samples, stored as windows: slot `j % 32` holds window `j` (words
 /// `2j` and `2j + 1`), so reading a window is one load.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
@@ -101,7 +109,9 @@ impl Default for Ring {
 
 impl Ring {
     /// Stores `src` as stream words `at`, `at + 1`, ... (older words are
-    /// overwritten). Whole windows are written in one store.
+    /// overwritten). Whole windows are written in one store, in runs of slots up
+    /// to the ring's end, so the copy loop carries two pointers and no slot index
+    /// (~4 instructions a window).
     pub fn write(&mut self, at: u32, src: &[u16]) {
         let mut at = at;
         let mut src = src;
@@ -113,15 +123,17 @@ impl Ring {
             }
         }
         let (pairs, rest) = src.as_chunks::<2>();
-        let mut j = at >> 1;
-        for p in pairs {
-            if let Some(slot) = self.slot_mut(j) {
-                *slot = pair(p);
-            }
-            j = j.wrapping_add(1);
+        let j = at >> 1;
+        let t = j as usize % (RING_WORDS / 2);
+        // The slots up to the ring's end, then from its start (a lap or more
+        // overwrites in stream order, as one store after the other would).
+        let (head, more) = pairs.split_at(pairs.len().min(RING_WORDS / 2 - t));
+        copy(self.windows.get_mut(t..).unwrap_or_default(), head);
+        for lap in more.chunks(RING_WORDS / 2) {
+            copy(&mut self.windows, lap);
         }
         if let Some(&w) = rest.first() {
-            self.set_earlier(j, w);
+            self.set_earlier(j.wrapping_add(pairs.len() as u32), w);
         }
     }
 
@@ -280,14 +292,17 @@ impl Ring {
         // one of the phase `skip` bit times earlier, minus those `skip` centres.
         let phase = first.wrapping_sub(j << (FRAC + 5));
         let skip = (phase / ratio.max(1)).min(12);
-        let e = &table
-            .entry(diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5)))
-            .a;
+        let ph0 = diff(first.wrapping_sub(skip * ratio), j << (FRAC + 5));
+        // The centres from the entry's `skip`th on: those at its sample and after
+        // (one mask instead of clearing the first `skip` one by one).
+        let kept = if KEEP {
+            u32::MAX.checked_shr(table.centre(ph0, skip)).unwrap_or(0)
+        } else {
+            0
+        };
+        let e = &table.entry(ph0).a;
         let x = self.window(j);
-        let mut all = e.all;
-        for _ in 0..skip {
-            all &= !0x8000_0000u32.checked_shr(all.leading_zeros()).unwrap_or(0);
-        }
+        let all = e.all & kept;
         let n = e.count.saturating_sub(skip);
         let mut acc = Acc {
             words: [0; 4],
@@ -353,13 +368,15 @@ impl Ring {
         }
         // The last window: its first `left` centres.
         let x = self.window(j);
-        let mut all = e.all;
-        for _ in left.min(e.count)..e.count {
-            all &= all.wrapping_sub(1);
-        }
-        acc.push(e.bits(x, slots) & all_top(left), left.min(e.count));
-        if let (true, Some(w)) = (KEEP, centres.windows.get_mut(k)) {
-            *w = [all, x & all];
+        let (e_all, count) = (e.all, e.count);
+        acc.push(e.bits(x, slots) & all_top(left), left.min(count));
+        if KEEP {
+            // Those before the entry's `left`th centre's sample (all of them when
+            // the window has no more than `left`).
+            let all = e_all & !u32::MAX.checked_shr(table.centre(ph, left)).unwrap_or(0);
+            if let Some(w) = centres.windows.get_mut(k) {
+                *w = [all, x & all];
+            }
         }
         centres.count = k + 1;
         let [a, b, c, _] = acc.words;

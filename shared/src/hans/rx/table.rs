@@ -164,10 +164,7 @@ impl Table {
     /// `-ERROR` (module doc), the entry then reads that centre from sample 0.
     #[inline(always)]
     pub fn entry(&mut self, phase: i32) -> &Pair {
-        // Offset before clamping: the compiler folds the constant into the
-        // gather's phase arithmetic, so the lookup gets no longer.
-        let slot = phase.wrapping_add(BELOW << SLOT_BITS).max(0) >> SLOT_BITS;
-        let slot = (slot as usize).min(SLOTS - 1);
+        let slot = slot(phase);
         let ratio = self.ratio;
         match self.entries.get_mut(slot) {
             Some(e) => {
@@ -183,11 +180,47 @@ impl Table {
     }
 }
 
+impl Table {
+    /// The sample (counted from its first window's start) at which the entry
+    /// [`Table::entry`] gives for `phase` reads that window's centre `k`: 32 or
+    /// more when the window has no centre `k`. The entries are built at the
+    /// table's rate (`follow` drops them all when it changes), so this is where
+    /// the entry put it, without walking its centres: the gather masks a window's
+    /// first or last centres off in one step.
+    #[inline(always)]
+    pub fn centre(&self, phase: i32, k: u32) -> u32 {
+        let pos = slot_first(slot(phase)).wrapping_add((k as i32).wrapping_mul(step(self.ratio)));
+        pos.max(0) as u32 >> FRAC
+    }
+}
+
+/// The phase slot of `phase` (Q16, clamped to the table).
+#[inline(always)]
+fn slot(phase: i32) -> usize {
+    // Offset before clamping: the compiler folds the constant into the gather's
+    // phase arithmetic, so the lookup gets no longer.
+    let slot = phase.wrapping_add(BELOW << SLOT_BITS).max(0) >> SLOT_BITS;
+    (slot as usize).min(SLOTS - 1)
+}
+
+/// The middle of phase slot `slot` (Q16; negative for the `BELOW` slots): where
+/// its entry puts the first centre.
+#[inline(always)]
+fn slot_first(slot: usize) -> i32 {
+    ((slot as i32 - BELOW) << SLOT_BITS) + (1 << (SLOT_BITS - 1))
+}
+
+/// The distance between centres the entries are built with at `ratio`.
+#[inline(always)]
+fn step(ratio: i32) -> i32 {
+    ratio.max(1 << FRAC)
+}
+
 /// Builds the entry of phase slot `slot` at `ratio` (Q16), taking the slot's middle
 /// (negative for the `BELOW` slots).
 fn pair(slot: usize, ratio: i32) -> Pair {
-    let first = ((slot as i32 - BELOW) << SLOT_BITS) + (1 << (SLOT_BITS - 1));
-    let step = ratio.max(1 << FRAC);
+    let first = slot_first(slot);
+    let step = step(ratio);
     let a = build(first, step);
     // The first centre after window a, against the start of the next window.
     let next = first
@@ -226,6 +259,30 @@ fn build(pos: i32, step: i32) -> Entry {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `Table::centre` names the sample of every centre of every built entry's
+    /// first window, in order, and 32 or more past its last, at rates 2.85..4.2
+    /// samples per bit and phases from below the first slot to past the last.
+    #[test]
+    fn centre_is_where_the_entry_reads() {
+        let mut ratio = (2.85 * 65536.0) as i32;
+        while ratio <= (4.2 * 65536.0) as i32 {
+            let mut table = Table::new(ratio);
+            for phase in (-(2 << SLOT_BITS)..(SLOTS as i32 + 2) << SLOT_BITS).step_by(37) {
+                let e = table.entry(phase).a;
+                let samples: Vec<u32> = (0..32).filter(|p| e.all & (1 << (31 - p)) != 0).collect();
+                assert_eq!(samples.len() as u32, e.count);
+                for k in 0..=13u32 {
+                    let at = table.centre(phase, k);
+                    match samples.get(k as usize) {
+                        Some(&p) => assert_eq!(at, p, "ratio {ratio} phase {phase} k {k}"),
+                        None => assert!(at >= 32, "ratio {ratio} phase {phase} k {k}: {at}"),
+                    }
+                }
+            }
+            ratio += 97;
+        }
+    }
 
     /// Every entry at rates 2.85..4.2 samples per bit gathers exactly the samples at
     /// its centres, in order, for random windows and the all-ones / all-zeros ones.

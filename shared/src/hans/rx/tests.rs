@@ -334,6 +334,19 @@ fn gather_reads_every_centre(ratio: u32, off: i32, first: u32, words: &[u16]) {
         .map(|[m, _]| m.count_ones())
         .sum();
     assert_eq!(centre_count, 125, "ratio {ratio} off {off} first {first}");
+    // The centre masks are the gathered centres: read in order, their samples
+    // are the pattern, and the kept values are the samples under them.
+    let mut read = 0u128;
+    for (i, &[m, v]) in centres.windows[..centres.count].iter().enumerate() {
+        let x = ring.window(centres.first.wrapping_add(i as u32));
+        assert_eq!(v, x & m, "ratio {ratio} off {off} first {first} window {i}");
+        for b in (0..32).rev() {
+            if m >> b & 1 == 1 {
+                read = read << 1 | u128::from(x >> b & 1);
+            }
+        }
+    }
+    assert_eq!(read, got, "ratio {ratio} off {off} first {first}");
     for b in 0..125u32 {
         let pos = u64::from(first) + u64::from(b) * u64::from(ratio);
         let frac = (pos & 0xFFFF) as f64 / 65536.0;

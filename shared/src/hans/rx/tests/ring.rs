@@ -1,4 +1,5 @@
-//! The ring's fast paths held to their general versions: the five-ring store of
+//! The ring's fast paths held to their general versions: a store against a
+//! word-by-word model of the ring, the five-ring store of
 //! vote5 / super mode against five single-ring stores, and the centre compare's
 //! slice walk (windows that do not wrap) against a sample-by-sample compare.
 
@@ -24,6 +25,30 @@ fn sample(ring: &Ring, s: i64) -> u32 {
 }
 
 proptest! {
+    /// A store of any length (none, odd, up to more than a lap) from any stream
+    /// word leaves every window as a ring of words written one after the other
+    /// has it: the two slot runs (to the ring's end, then from its start) and
+    /// the half windows at both ends in place, older words kept.
+    #[test]
+    fn write_matches_word_model(
+        fill in proptest::collection::vec(any::<u16>(), RING_WORDS),
+        at in any::<u32>(),
+        words in proptest::collection::vec(any::<u16>(), 0..=RING_WORDS + 9),
+    ) {
+        let mut ring = Ring::default();
+        ring.write(0, &fill[..RING_WORDS / 2]);
+        ring.write(RING_WORDS as u32 / 2, &fill[RING_WORDS / 2..]);
+        let mut model = fill.clone();
+        for (i, &w) in words.iter().enumerate() {
+            model[(at as usize).wrapping_add(i) % RING_WORDS] = w;
+        }
+        ring.write(at, &words);
+        for j in 0..RING_WORDS / 2 {
+            let want = u32::from(model[2 * j]) << 16 | u32::from(model[2 * j + 1]);
+            prop_assert_eq!(ring.window(j as u32), want, "window {}", j);
+        }
+    }
+
     /// The five-ring store of words `from .. from + len` of five chunks equals five
     /// single-ring stores, at any ring position and word parity; a chunk missing
     /// or too short for the range refuses the store and leaves every ring as it
