@@ -34,10 +34,15 @@
 //! the wire words itself and only fills ([`Transmitter::write_words`]). About 200 instructions per frame of three lines on the Cortex-M7
 //! (`cargo xtask qemu`), some 125 of them filling the 40 words.
 //!
-//! The per-bit stores are the floor the compiler leaves: tables of two bit times per
-//! entry (four words copied as a block) came out no cheaper, since it splits such
-//! small copies into single-word loads and stores, and it rarely pairs a word with
-//! the constant CLK-reset word into one 64-bit store.
+//! The per-bit stores are the floor the compiler leaves here: tables of two bit
+//! times per entry (four words copied as a block) came out no cheaper, since it
+//! splits such small copies into single-word loads and stores, and it rarely pairs a
+//! word with the constant CLK-reset word into one 64-bit store. The XY3-100
+//! transmitter's five-word copies (`lanes::fill_pairs`, one load-multiple and one
+//! store-multiple per two bits) need the word after the bits as scratch and an
+//! optimisation barrier to stay whole; in this fill the compiler still shortened
+//! them to four words (measured 2026-12-02: 141..153 instead of 126), so it keeps
+//! the one-bit loop.
 //!
 //! # Errors
 //! A frame the link cannot carry ([`EncodeError`]) is never half-sent: its slot is filled

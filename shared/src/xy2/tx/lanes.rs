@@ -8,9 +8,11 @@
 //! for eight bit times of all three lines at once: each line's next byte is spread by
 //! a 256-entry table so that bit `k` lands at bit `3k`, and the lines are merged one
 //! place apart, so bits `3k + 2 ..= 3k` are the index of bit time `7 - k` (line 0 in
-//! the index's bit 0). Per bit that leaves one field extract, one look-up and one
-//! store of the word with the constant CLK-reset word (a 64-bit store on the
-//! Cortex-M7): no branches on the data and no per-bit gathering.
+//! the index's bit 0). Per bit that leaves one field extract, one look-up and the
+//! two stores ([`fill`], XY2-100): no branches on the data and no per-bit gathering.
+//! The XY3-100 transmitter takes two bit times at once ([`fill_pairs`]): two
+//! neighbouring 3-bit fields are a 6-bit index into a table of the four words of
+//! both bits ([`pair_patterns`]), copied as one block.
 
 /// The spreading table of `BITS`-bit indices: entry `i` holds bit `k` of `i` at bit
 /// `stride * k`. Built at compile time; the bit loops of both transmitters use one
@@ -83,6 +85,80 @@ pub(crate) fn fill<const BITS: usize>(
         for (pair, k) in group.iter_mut().zip((0..8u32).rev()) {
             let rise = patterns.get((merged >> (3 * k) & 7) as usize);
             *pair = [rise.copied().unwrap_or(0), fall];
+        }
+    }
+}
+
+/// Words per entry of [`pair_patterns`]' table: the five words [`fill_pairs`] copies and
+/// three of padding, so an entry's address is the 6-bit index shifted, with no
+/// multiply.
+pub(crate) const ENTRY: usize = 8;
+
+/// The words of two consecutive bit times per pair of patterns: entry `8 e + l`
+/// starts with the rising word of pattern `e` (the earlier bit time), `fall`, the
+/// rising word of pattern `l` (the later one), `fall`, then `fall` once more as the
+/// fifth word [`fill_pairs`] copies (the first word of the next bit time, which the
+/// next copy writes over); the padding is 0.
+pub(crate) fn pair_patterns(patterns: &[u32; 8], fall: u32) -> [[u32; ENTRY]; 64] {
+    let mut t = [[0u32; ENTRY]; 64];
+    for (early, row) in patterns.iter().zip(t.chunks_exact_mut(8)) {
+        for (late, entry) in patterns.iter().zip(row) {
+            if let Some(head) = entry.first_chunk_mut::<5>() {
+                *head = [*early, fall, *late, fall, fall];
+            }
+        }
+    }
+    t
+}
+
+/// Writes the `4 * PAIRS` words of the first `2 * PAIRS` bits (at most 32) of the
+/// MSB-aligned line words `lines` (the first bit on the wire in bit 31) into `out`,
+/// two bit times per entry of `table` ([`pair_patterns`]). `WORDS` is
+/// `4 * PAIRS + 1`: the word after the bits is scratched (the XY3-100 transmitter
+/// writes SYNC's rise there afterwards). Fully unrolled for constant sizes.
+///
+/// Why two bit times and five words per copy: a block copy of more than four words
+/// is one load-multiple and one store-multiple on the Cortex-M7 (four words the
+/// compiler splits into single loads and stores), so every two bits cost one field
+/// extract, two address computations and the block copy (five instructions) instead
+/// of an extract, a load and two stores per bit (eight). The copies overlap by one
+/// word, the next entry's first word writing over the previous entry's fifth, so
+/// they run in order. The compiler would see that fifth word overwritten and shorten
+/// each copy to four words again: `black_box(())` after each copy (an empty
+/// optimisation barrier, no instruction) keeps it whole. The words written are the
+/// same either way; only the count of instructions depends on it, and the bench
+/// shows it. (In the XY2-100 transmitter's out-of-line fill the barrier does not
+/// keep the copies whole, measured: it keeps the one-bit loop [`fill`].)
+#[inline(always)]
+pub(crate) fn fill_pairs<const PAIRS: usize, const WORDS: usize>(
+    table: &[[u32; ENTRY]; 64],
+    lines: [u32; 3],
+    out: &mut [u32; WORDS],
+) {
+    const {
+        assert!(PAIRS <= 16, "a line word holds at most 32 bits");
+        assert!(WORDS == 4 * PAIRS + 1);
+    };
+    for g in 0..PAIRS.div_ceil(4) {
+        // Group g holds bits 31 - 8g ..= 24 - 8g of every line; its bit time
+        // `7 - k` is the merged word's field `3k + 2 ..= 3k`, so the bit times
+        // `2j` and `2j + 1` of the group are the 6-bit field at `18 - 6j` (the
+        // earlier one high).
+        let shift = 24u32.saturating_sub(8 * g as u32);
+        let merged = merge(lines.map(|l| l >> shift));
+        for j in 0..4 {
+            let pair = 4 * g + j;
+            if pair >= PAIRS {
+                break;
+            }
+            let Some(entry) = table.get((merged >> (18 - 6 * j as u32) & 63) as usize) else {
+                continue;
+            };
+            let at = 4 * pair;
+            if let (Some(to), Some(from)) = (out.get_mut(at..at + 5), entry.get(..5)) {
+                to.copy_from_slice(from);
+                core::hint::black_box(());
+            }
         }
     }
 }
