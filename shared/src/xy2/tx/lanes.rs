@@ -115,14 +115,14 @@ pub(crate) fn fill_pairs<const PAIRS: usize, const WORDS: usize>(
         assert!(PAIRS <= 16, "a line word holds at most 32 bits");
         assert!(WORDS == 4 * PAIRS || WORDS == 4 * PAIRS + 1);
     };
+    // Group g holds bits 31 - 8g ..= 24 - 8g of every line; its bit time `7 - k`
+    // is the merged word's field `3k + 2 ..= 3k`, so the bit times `2j` and
+    // `2j + 1` of the group are the 6-bit field at `18 - 6j` (the earlier one
+    // high). All groups are gathered first: the lines are then no longer needed
+    // while the block copies take their registers.
+    let groups: [u32; 4] = core::array::from_fn(|g| merge(lines.map(|l| l >> (24 - 8 * g))));
     core::hint::black_box(out.as_mut_ptr());
-    for g in 0..PAIRS.div_ceil(4) {
-        // Group g holds bits 31 - 8g ..= 24 - 8g of every line; its bit time
-        // `7 - k` is the merged word's field `3k + 2 ..= 3k`, so the bit times
-        // `2j` and `2j + 1` of the group are the 6-bit field at `18 - 6j` (the
-        // earlier one high).
-        let shift = 24u32.saturating_sub(8 * g as u32);
-        let merged = merge(lines.map(|l| l >> shift));
+    for (g, &merged) in groups.iter().enumerate().take(PAIRS.div_ceil(4)) {
         for j in 0..4 {
             let pair = 4 * g + j;
             if pair >= PAIRS {
