@@ -114,8 +114,9 @@ impl HeadOutput {
 
 /// The neutral -> wire encoder of the head.
 enum Encoder {
-    /// XY2-100 / XY3-100: the shared neutral -> BSRR words encoder.
-    Wave(HeadTx),
+    /// XY2-100 / XY3-100: the shared neutral -> BSRR words encoder (boxed: its
+    /// transmitter carries a 2 KiB table of two-bit words).
+    Wave(Box<HeadTx>),
     /// HANS-100: the SAI ring and its writer, the last frame written (DATA words a
     /// frame lacks are held from it).
     Hans(Box<HansRing>),
@@ -235,11 +236,11 @@ impl Output {
                     .map_err(|e| setup(format!("XY2-100 transmitter: {e}")))?;
                 let idle = (tx.idle_word(), tx.idle_word());
                 (
-                    Encoder::Wave(HeadTx::Xy2 {
+                    Encoder::Wave(Box::new(HeadTx::Xy2 {
                         tx,
                         mode: h.mode,
                         z,
-                    }),
+                    })),
                     ticks,
                     idle,
                     out,
@@ -255,7 +256,12 @@ impl Output {
                 tx.idle(&mut one)
                     .map_err(|e| setup(format!("XY3-100 idle: {e}")))?;
                 let idle = (one.first().copied().unwrap_or(0), 0);
-                (Encoder::Wave(HeadTx::Xy3 { tx, lines }), ticks, idle, out)
+                (
+                    Encoder::Wave(Box::new(HeadTx::Xy3 { tx, lines })),
+                    ticks,
+                    idle,
+                    out,
+                )
             }
             Protocol::Hans => (
                 Encoder::Hans(Box::new(HansRing::new())),

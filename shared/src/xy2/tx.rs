@@ -22,22 +22,20 @@
 //!
 //! # Cost
 //! [`Transmitter::new`] precomputes the whole first word of a bit for each of the 8
-//! patterns of one bit per data line (CLK and SYNC set, each data pin set or reset).
-//! The bit loop (`lanes`, shared with the XY3-100 transmitter) gathers the pattern
+//! patterns of one bit per data line (CLK and SYNC set, each data pin set or reset),
+//! and from them a 64-entry table of the four words of two bit times (2 KiB). The
+//! bit loop (`lanes`, shared with the XY3-100 transmitter) gathers the pattern
 //! indices of eight bit times of the three lines at once, one look-up per line in a
-//! 256-entry spreading table; per bit it then extracts the 3-bit field, looks the
-//! word up and stores it with the constant CLK-reset word: no branches on the data,
-//! four instructions per bit. Bit 20 additionally flips SYNC from set to reset. A
-//! missing Z line has no pin, so its bit selects between identical entries. The
-//! frame checks and wire words ([`Transmitter::write_frame`]) inline into the caller;
-//! only the fill is a call. The bridge's head encoder (`bridge::head_out`) computes
-//! the wire words itself and only fills ([`Transmitter::write_words`]). About 200 instructions per frame of three lines on the Cortex-M7
-//! (`cargo xtask qemu`), some 125 of them filling the 40 words.
-//!
-//! The per-bit stores are the floor the compiler leaves: tables of two bit times per
-//! entry (four words copied as a block) came out no cheaper, since it splits such
-//! small copies into single-word loads and stores, and it rarely pairs a word with
-//! the constant CLK-reset word into one 64-bit store.
+//! 256-entry spreading table; per two bits it then extracts the 6-bit field of both
+//! patterns and copies the table entry as one block (a load-multiple and a
+//! store-multiple): no branches on the data, five instructions per two bits. Bit 20
+//! additionally flips SYNC from set to reset. A missing Z line has no pin, so its
+//! bit selects between identical entries. The frame checks and wire words
+//! ([`Transmitter::write_frame`]) inline into the caller; only the fill is a call.
+//! The bridge's head encoder (`bridge::head_out`) computes the wire words itself
+//! and only fills ([`Transmitter::write_words`]). About 185 instructions per frame
+//! of three lines on the Cortex-M7 (`cargo xtask qemu`), some 115 of them filling
+//! the 40 words (125 with one look-up and two stores per bit).
 //!
 //! # Errors
 //! A frame the link cannot carry ([`EncodeError`]) is never half-sent: its slot is filled
@@ -132,11 +130,11 @@ pub struct Transmitter {
     link: LinkConfig,
     ticks: usize,
     has_z: bool,
-    /// First word of a bit (CLK and SYNC set, data set or reset) per pattern:
-    /// bit 0 of the index = X, bit 1 = Y, bit 2 = Z.
-    patterns: [u32; 8],
-    /// Second word of a bit: resets CLK (the sampling edge).
-    clk_reset: u32,
+    /// The words of two bit times per pair of patterns (`lanes::pair_patterns`):
+    /// the first word of a bit sets CLK and SYNC and sets or resets the data lines
+    /// (bit 0 of a pattern = X, bit 1 = Y, bit 2 = Z), the second resets CLK (the
+    /// sampling edge).
+    pairs: [[u32; lanes::ENTRY]; 64],
     /// XORed into bit 20's first word: SYNC reset instead of set.
     sync_drop: u32,
     /// Resets CLK, SYNC and the data lines.
@@ -167,8 +165,7 @@ impl Transmitter {
             link,
             ticks: ticks_per_frame,
             has_z: pins.z.is_some(),
-            patterns: lanes::patterns(high, lanes),
-            clk_reset: bit(pins.clk) << 16,
+            pairs: lanes::pair_patterns(&lanes::patterns(high, lanes), bit(pins.clk) << 16),
             sync_drop: bit(pins.sync) | bit(pins.sync) << 16,
             idle: (high | data) << 16,
         })
@@ -256,16 +253,16 @@ impl Transmitter {
     fn fill(&self, slot: &mut [u32], [x, y, z]: [u32; 3]) {
         let (bits, tail) = slot.split_at_mut(FRAME_TICKS.min(slot.len()));
         tail.fill(self.idle);
-        let (pairs, _) = bits.as_chunks_mut::<2>();
-        let Some(pairs) = pairs.first_chunk_mut::<{ FRAME_BITS as usize }>() else {
+        let Some(bits) = bits.first_chunk_mut::<FRAME_TICKS>() else {
             return;
         };
         // MSB-aligned: bit 19, the first on the wire, in bit 31.
         let align = 32 - FRAME_BITS;
         let lines = [x << align, y << align, z << align];
-        lanes::fill(&self.patterns, self.clk_reset, lines, pairs);
-        if let Some(last) = pairs.last_mut() {
-            last[0] ^= self.sync_drop;
+        lanes::fill_pairs::<{ FRAME_BITS as usize / 2 }, FRAME_TICKS>(&self.pairs, lines, bits);
+        // Bit 20's first word: SYNC falls.
+        if let Some(last) = bits.get_mut(FRAME_TICKS - 2) {
+            *last ^= self.sync_drop;
         }
     }
 }

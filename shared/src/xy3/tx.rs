@@ -37,16 +37,20 @@
 //! The pins are resolved once: a 32-entry table gives the rising word (CLK set, data
 //! set or reset) for every pattern of one bit per line, and the CLK, SYNC and data
 //! masks are kept as BSRR bits. Heads without U and W use the XY2-100 transmitter's
-//! bit loop (`xy2::tx::lanes`): the first 8 entries are the X Y Z patterns, each
-//! line's next byte is spread by a 256-entry table so eight bit times' indices sit
-//! side by side, then per bit one field extract, one look-up and two stores. With U
-//! or W the five lines are merged six bit times at a time into 5-bit fields (a
-//! 64-entry spreading table). The loop is compiled once per frame size (fully
-//! unrolled) and per "U or W driven". No branches on the data. About 320
-//! instructions per 32-bit frame period on X Y Z (285 for 24-bit frames) and 440 on
-//! all five lines on the Cortex-M7 (`cargo xtask qemu`), some 125 of them checking
-//! and encoding the frames ([`Transmitter::encode`]); the bridge's head encoder
-//! builds and encodes its frames itself and only fills
+//! pattern gathering (`xy2::tx::lanes`): the first 8 entries are the X Y Z
+//! patterns, each line's next byte is spread by a 256-entry table so eight bit
+//! times' indices sit side by side, and two neighbouring indices select one entry
+//! of a 64-entry table holding both bits' four words (`lanes::pair_patterns`, 2 KiB
+//! per transmitter), copied as one block: per two bits a field extract, two address
+//! computations, one load-multiple and one store-multiple (`lanes::fill_pairs`).
+//! With U or W the five lines are merged six bit times at a time into 5-bit fields
+//! (a 64-entry spreading table), then per bit one field extract, one look-up and
+//! two stores. The loop is compiled once per frame size (fully unrolled) and per
+//! "U or W driven". No branches on the data. About 290 instructions per 32-bit
+//! frame period on X Y Z (260 for 24-bit frames; 320 / 285 with the one-bit loop)
+//! and 440 on all five lines on the Cortex-M7 (`cargo xtask qemu`), some 125 of
+//! them checking and encoding the frames ([`Transmitter::encode`]); the bridge's
+//! head encoder builds and encodes its frames itself and only fills
 //! ([`Transmitter::encode_words`]).
 
 use core::fmt;
@@ -150,25 +154,33 @@ const fn set(pin: u8) -> u32 {
 }
 
 /// The XY3-100 transmitter: precomputed masks for one pin map and frame size.
+///
+/// In declaration order (`repr(C)`): the two tables first, so each fill's look-ups
+/// index from the transmitter's own address instead of a second base register.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[repr(C)]
 pub struct Transmitter {
-    /// Set bit of CLK (its reset bit is this shifted up 16).
-    clk: u32,
-    /// Set bit of SYNC.
-    sync: u32,
-    /// Pin per axis, `None` if not driven.
-    data: [Option<u8>; 5],
-    /// Set bits of every driven data pin.
-    data_mask: u32,
-    /// The driven lines, bit [`Axis::index`] per line.
-    driven: u8,
     /// The rising-edge word (CLK set, data set for ones, reset for zeros) of every
     /// pattern of one bit per line: bit 0 = X, bit 1 = Y, … bit 4 = W. Its first 8
     /// entries (U and W low) are the patterns of X, Y and Z alone.
     lut: [u32; 32],
-    size: FrameSize,
+    /// The words of two bit times of X, Y and Z per pair of patterns (`lut`'s
+    /// first 8 entries and the CLK-reset word; `xy2::tx::lanes::pair_patterns`),
+    /// for heads without U and W.
+    pairs: [[u32; lanes::ENTRY]; 64],
+    /// Set bit of CLK (its reset bit is this shifted up 16).
+    clk: u32,
+    /// Set bit of SYNC.
+    sync: u32,
+    /// Set bits of every driven data pin.
+    data_mask: u32,
     ticks: usize,
+    /// Pin per axis, `None` if not driven.
+    data: [Option<u8>; 5],
+    /// The driven lines, bit [`Axis::index`] per line.
+    driven: u8,
+    size: FrameSize,
     /// U or W is driven (else their words are always 0 and the encoder skips them).
     wide: bool,
 }
@@ -219,6 +231,9 @@ impl Transmitter {
                 .enumerate()
                 .filter(|(_, p)| p.is_some())
                 .fold(0, |m, (i, _)| m | 1 << i),
+            pairs: lut.first_chunk::<8>().map_or([[0; lanes::ENTRY]; 64], |p| {
+                lanes::pair_patterns(p, set(pins.clk) << 16)
+            }),
             lut,
             size: config.size,
             ticks: 2 * config.size.bits() as usize + config.idle_ticks as usize,
@@ -307,10 +322,10 @@ impl Transmitter {
         // One copy of the bit loop per frame size, so it unrolls with constant shifts,
         // and per "U or W driven", so the common X Y Z head skips two idle lines.
         match (self.size, self.wide) {
-            (FrameSize::Bits24, false) => self.fill::<24, false>(words, out),
-            (FrameSize::Bits24, true) => self.fill::<24, true>(words, out),
-            (FrameSize::Bits32, false) => self.fill::<32, false>(words, out),
-            (FrameSize::Bits32, true) => self.fill::<32, true>(words, out),
+            (FrameSize::Bits24, false) => self.fill::<24, 12, 49, false>(words, out),
+            (FrameSize::Bits24, true) => self.fill::<24, 12, 49, true>(words, out),
+            (FrameSize::Bits32, false) => self.fill::<32, 16, 65, false>(words, out),
+            (FrameSize::Bits32, true) => self.fill::<32, 16, 65, true>(words, out),
         }
     }
 
@@ -331,27 +346,41 @@ impl Transmitter {
 
     /// Writes the set-up word, the `2 * BITS` bit words of the right-aligned `words`,
     /// SYNC's rise and the idle tail; `out` is exactly one frame period (at least
-    /// `2 * BITS + 2` words). Without `WIDE` the U and W words are 0 (not driven) and
-    /// the shared three-line loop (`xy2::tx::lanes`) does X, Y and Z.
+    /// `2 * BITS + 2` words; `PAIRS` is `BITS / 2` and `WORDS` `2 * BITS + 1`, the
+    /// bit words and SYNC's rise). Without `WIDE` the U and W words are 0 (not
+    /// driven) and the shared three-line loop (`xy2::tx::lanes`) does X, Y and Z,
+    /// two bit times per look-up.
     #[inline(always)]
-    fn fill<const BITS: usize, const WIDE: bool>(&self, words: [u32; 5], out: &mut [u32]) {
+    fn fill<const BITS: usize, const PAIRS: usize, const WORDS: usize, const WIDE: bool>(
+        &self,
+        words: [u32; 5],
+        out: &mut [u32],
+    ) {
+        const { assert!(2 * PAIRS == BITS && WORDS == 2 * BITS + 1) };
         // MSB-aligned: the first bit on the line in bit 31.
         let [a, b, c, d, e] = words.map(|w| w << (32 - BITS));
         let clk_reset = self.clk << 16;
         let Some((setup, rest)) = out.split_first_mut() else {
             return;
         };
-        let (pairs, _) = rest.as_chunks_mut::<2>();
-        let Some(pairs) = pairs.first_chunk_mut::<BITS>() else {
-            return;
-        };
-        if WIDE {
+        let first = if WIDE {
+            let (pairs, _) = rest.as_chunks_mut::<2>();
+            let Some(pairs) = pairs.first_chunk_mut::<BITS>() else {
+                return;
+            };
             wide(&self.lut, clk_reset, [a, b, c, d, e], pairs);
-        } else if let Some(patterns) = self.lut.first_chunk::<8>() {
-            lanes::fill(patterns, clk_reset, [a, b, c], pairs);
-        }
+            pairs.first().map_or(0, |p| p[0])
+        } else {
+            // The word after the bits (SYNC's rise) is written below, so the loop
+            // may scratch it.
+            let Some(bits) = rest.first_chunk_mut::<WORDS>() else {
+                return;
+            };
+            lanes::fill_pairs::<PAIRS, WORDS>(&self.pairs, [a, b, c], bits);
+            bits[0]
+        };
         // Set-up word: SYNC falls with bit 0's data in place, CLK still low.
-        let first = pairs.first().map_or(0, |p| p[0] & !self.clk);
+        let first = first & !self.clk;
         *setup = self.sync << 16 | clk_reset | first;
         if let Some((rise, idle)) = rest.get_mut(2 * BITS..).and_then(|t| t.split_first_mut()) {
             *rise = self.sync | self.data_mask << 16;

@@ -3,15 +3,14 @@
 //! item 4 of the README's "DMA buffer layouts": two BSRR words per bit, the first
 //! setting CLK and every data line's level, the second only resetting CLK.
 //!
-//! Per bit the first word depends only on the three lines' bits, so a table of the 8
-//! patterns gives it with one look-up. The pattern index of each bit time is gathered
-//! for eight bit times of all three lines at once: each line's next byte is spread by
-//! a 256-entry table so that bit `k` lands at bit `3k`, and the lines are merged one
-//! place apart, so bits `3k + 2 ..= 3k` are the index of bit time `7 - k` (line 0 in
-//! the index's bit 0). Per bit that leaves one field extract, one look-up and one
-//! store of the word with the constant CLK-reset word (a 64-bit store on the
-//! Cortex-M7): no branches on the data and no per-bit gathering.
-
+//! Per bit the first word depends only on the three lines' bits, one of 8 patterns
+//! ([`patterns`]). The pattern index of each bit time is gathered for eight bit
+//! times of all three lines at once: each line's next byte is spread by a 256-entry
+//! table so that bit `k` lands at bit `3k`, and the lines are merged one place
+//! apart, so bits `3k + 2 ..= 3k` are the index of bit time `7 - k` (line 0 in the
+//! index's bit 0). Two neighbouring 3-bit fields are then one 6-bit index into a
+//! table holding the four words of both bit times ([`pair_patterns`]), copied as one
+//! block ([`fill_pairs`]): no branches on the data and no per-bit gathering.
 /// The spreading table of `BITS`-bit indices: entry `i` holds bit `k` of `i` at bit
 /// `stride * k`. Built at compile time; the bit loops of both transmitters use one
 /// (three lines: stride 3, eight bit times here; five lines: stride 5 in
@@ -65,24 +64,81 @@ pub(crate) fn patterns(rise: u32, lanes: [u32; 3]) -> [u32; 8] {
     t
 }
 
-/// Writes the word pairs of the first `BITS` bits (at most 32) of the MSB-aligned
-/// line words `lines` (the first bit on the wire in bit 31) into `out`: per bit the
-/// rising word from `patterns` and `fall`. Fully unrolled for a constant `BITS`.
+/// Words per entry of [`pair_patterns`]' table: the five words [`fill_pairs`] copies and
+/// three of padding, so an entry's address is the 6-bit index shifted, with no
+/// multiply.
+pub(crate) const ENTRY: usize = 8;
+
+/// The words of two consecutive bit times per pair of patterns: entry `8 e + l`
+/// starts with the rising word of pattern `e` (the earlier bit time), `fall`, the
+/// rising word of pattern `l` (the later one), `fall`, then `fall` once more as the
+/// fifth word [`fill_pairs`] copies (the first word of the next bit time, which the
+/// next copy writes over); the padding is 0.
+pub(crate) fn pair_patterns(patterns: &[u32; 8], fall: u32) -> [[u32; ENTRY]; 64] {
+    let mut t = [[0u32; ENTRY]; 64];
+    for (early, row) in patterns.iter().zip(t.chunks_exact_mut(8)) {
+        for (late, entry) in patterns.iter().zip(row) {
+            if let Some(head) = entry.first_chunk_mut::<5>() {
+                *head = [*early, fall, *late, fall, fall];
+            }
+        }
+    }
+    t
+}
+
+/// Writes the `4 * PAIRS` words of the first `2 * PAIRS` bits (at most 32) of the
+/// MSB-aligned line words `lines` (the first bit on the wire in bit 31) into `out`,
+/// two bit times per entry of `table` ([`pair_patterns`]). `WORDS` is `4 * PAIRS`
+/// (XY2-100: the last two bits are four single copies) or one more, a word after
+/// the bits that the loop may scratch (XY3-100, which writes SYNC's rise there
+/// afterwards). Fully unrolled for constant sizes.
+///
+/// Why two bit times and five words per copy: a block copy of more than four words
+/// is one load-multiple and one store-multiple on the Cortex-M7 (four words the
+/// compiler splits into single loads and stores), so every two bits cost one field
+/// extract, two address computations and the block copy (five instructions) instead
+/// of an extract, a load and two stores per bit (eight). The copies overlap by one
+/// word, the next entry's first word writing over the previous entry's fifth, so
+/// they run in order. The compiler would see that fifth word overwritten and shorten
+/// each copy to four words again, so two optimisation barriers keep it whole: `out`'s
+/// address is handed to `black_box` once (it then counts as visible outside the
+/// function), and `black_box(())` after each copy (no instruction) is an opaque step
+/// that might read it. The words written are the same either way; only the count of
+/// instructions depends on the barriers, and the bench shows it.
 #[inline(always)]
-pub(crate) fn fill<const BITS: usize>(
-    patterns: &[u32; 8],
-    fall: u32,
+pub(crate) fn fill_pairs<const PAIRS: usize, const WORDS: usize>(
+    table: &[[u32; ENTRY]; 64],
     lines: [u32; 3],
-    out: &mut [[u32; 2]; BITS],
+    out: &mut [u32; WORDS],
 ) {
-    const { assert!(BITS <= 32, "a line word holds at most 32 bits") };
-    for (g, group) in out.chunks_mut(8).enumerate() {
-        // Group g holds bits 31 - 8g ..= 24 - 8g of every line.
-        let shift = 24u32.saturating_sub(8 * g as u32);
-        let merged = merge(lines.map(|l| l >> shift));
-        for (pair, k) in group.iter_mut().zip((0..8u32).rev()) {
-            let rise = patterns.get((merged >> (3 * k) & 7) as usize);
-            *pair = [rise.copied().unwrap_or(0), fall];
+    const {
+        assert!(PAIRS <= 16, "a line word holds at most 32 bits");
+        assert!(WORDS == 4 * PAIRS || WORDS == 4 * PAIRS + 1);
+    };
+    // Group g holds bits 31 - 8g ..= 24 - 8g of every line; its bit time `7 - k`
+    // is the merged word's field `3k + 2 ..= 3k`, so the bit times `2j` and
+    // `2j + 1` of the group are the 6-bit field at `18 - 6j` (the earlier one
+    // high). All groups are gathered first: the lines are then no longer needed
+    // while the block copies take their registers.
+    let groups: [u32; 4] = core::array::from_fn(|g| merge(lines.map(|l| l >> (24 - 8 * g))));
+    core::hint::black_box(out.as_mut_ptr());
+    for (g, &merged) in groups.iter().enumerate().take(PAIRS.div_ceil(4)) {
+        for j in 0..4 {
+            let pair = 4 * g + j;
+            if pair >= PAIRS {
+                break;
+            }
+            let Some(entry) = table.get((merged >> (18 - 6 * j as u32) & 63) as usize) else {
+                continue;
+            };
+            let at = 4 * pair;
+            if let (Some(to), Some(from)) = (out.get_mut(at..at + 5), entry.get(..5)) {
+                to.copy_from_slice(from);
+                core::hint::black_box(());
+            } else if let (Some(to), Some(from)) = (out.get_mut(at..at + 4), entry.get(..4)) {
+                // The last two bits without a word to scratch.
+                to.copy_from_slice(from);
+            }
         }
     }
 }
