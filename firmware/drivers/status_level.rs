@@ -6,52 +6,44 @@
 //! accepted after [`STABLE_SAMPLES`] equal samples in a row, so spikes on the long
 //! cable do not flip the head's health. The line is slow by nature (a head's ready
 //! signal), so a millisecond tick costs nothing and still reacts within milliseconds.
+//! The level at start-up is reported too, once stable (`shared`'s
+//! `LevelDebouncer`): a head in fault from power-up must be known as such.
 
 use embassy_stm32::gpio::{Input, Level, Output};
-use embassy_time::{Duration, Ticker};
+use embassy_time::{Duration, Instant, Ticker};
+use shared::xy2::status_line::LevelDebouncer;
 use shared::xy2::{Health, StatusLevel};
 
 /// Sample period.
 pub const TICK: Duration = Duration::from_millis(1);
 /// Equal samples needed to accept a level change (5 ms at 1 ms ticks).
-pub const STABLE_SAMPLES: u8 = 5;
+pub const STABLE_SAMPLES: u16 = 5;
 
 /// Debounced STATUS level input.
 pub struct StatusIn<'d> {
     pin: Input<'d>,
-    setting: StatusLevel,
     ticker: Ticker,
-    level: bool,
-    run: u8,
+    debouncer: LevelDebouncer,
 }
 
 impl<'d> StatusIn<'d> {
-    /// Starts from the level the line has now.
+    /// No level known until the line has been stable for [`STABLE_SAMPLES`].
     pub fn new(pin: Input<'d>, setting: StatusLevel) -> Self {
-        let level = pin.is_high();
         Self {
             pin,
-            setting,
             ticker: Ticker::every(TICK),
-            level,
-            run: 0,
+            debouncer: LevelDebouncer::new(setting, STABLE_SAMPLES),
         }
     }
 
-    /// Waits until the debounced level changes and returns the health it means.
+    /// Waits until the debounced level is first known or changes and returns the
+    /// health it means.
     pub async fn changed(&mut self) -> Health {
         loop {
             self.ticker.next().await;
-            let now = self.pin.is_high();
-            if now == self.level {
-                self.run = 0;
-                continue;
-            }
-            self.run = self.run.saturating_add(1);
-            if self.run >= STABLE_SAMPLES {
-                self.level = now;
-                self.run = 0;
-                return self.setting.health(now);
+            let now = Instant::now().as_micros();
+            if let Some(change) = self.debouncer.feed(now, self.pin.is_high()) {
+                return change.health;
             }
         }
     }

@@ -1506,14 +1506,15 @@ mod tests {
     }
 
     /// XY2-100 STATUS level: controller-side output -> head-side debounced input.
-    /// Jumper: PA0 -> PG9.
+    /// The level at start-up (`StatusOut` starts at fault) is reported first, then
+    /// each change. Jumper: PA0 -> PG9.
     #[test]
     async fn status_level_loopback(board: Board) {
         let r = board.res;
         let setting = StatusLevel::default();
         let mut out = StatusOut::new(Output::new(r.ctrl_status, Level::High, Speed::Low), setting);
         let mut input = StatusIn::new(Input::new(r.head_status, Pull::None), setting);
-        for health in [Health::Ok, Health::Fault, Health::Ok] {
+        for health in [Health::Fault, Health::Ok, Health::Fault, Health::Ok] {
             out.set(health);
             let seen = with_timeout(WAIT, input.changed()).await.unwrap();
             assert_eq!(seen, health);

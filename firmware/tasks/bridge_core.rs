@@ -150,8 +150,12 @@ pub(super) struct Core {
     head_status: AnonReceiver<'static, CriticalSectionRawMutex, HeadStatus, 2>,
     /// An XY2 head with a STATUS level reports only changes; the line itself is
     /// always there (an open RS-485 receiver reads its fail-safe level, which the
-    /// debouncer reports as a level), so the status counts as seen every batch.
+    /// debouncer reports as a level), so the status counts as seen every batch
+    /// once the first level is in (before it the head's state is not known, and
+    /// the laser gate waits for it).
     level_status: bool,
+    /// A head status has been taken.
+    status_known: bool,
     ctrl_level: xy2::StatusLevel,
     /// XY3-100 controller: the bridge's backchannel packets go out through BACK_TX.
     back_ctrl: bool,
@@ -190,6 +194,7 @@ impl Core {
             decoder,
             head_status: HEAD_STATUS.anon_receiver(),
             level_status: head == Head::Xy2 && config.head.xy2.status == StatusForm::Level,
+            status_known: false,
             ctrl_level: xy2::StatusLevel {
                 polarity: config.controller.xy2.polarity,
             },
@@ -243,7 +248,8 @@ impl Core {
         if let Some(s) = self.head_status.try_changed() {
             *self.bridge.head_status_mut() = s;
             self.bridge.status_seen(now_ns);
-        } else if self.level_status {
+            self.status_known = true;
+        } else if self.level_status && self.status_known {
             self.bridge.status_seen(now_ns);
         }
     }

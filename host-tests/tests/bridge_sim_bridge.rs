@@ -106,6 +106,18 @@ fn assert_alarm_keeps_gate_off(o: &Out, alarm: &str) {
     }
 }
 
+/// The time in ms right after `prefix` in the bridge's printout.
+fn ms_after(stderr: &str, prefix: &str) -> f64 {
+    let at = stderr
+        .find(prefix)
+        .unwrap_or_else(|| panic!("no `{prefix}` in {stderr}"));
+    stderr[at + prefix.len()..]
+        .split(" ms")
+        .next()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no time after `{prefix}` in {stderr}"))
+}
+
 /// A counter from the bridge's printout (`name N`).
 fn counter(stderr: &str, name: &str) -> u64 {
     let at = stderr
@@ -579,14 +591,17 @@ fn head_status_reaches_the_controller() {
         WriteTimescale::Ps,
     )
     .unwrap();
-    // The link runs after 50 frames (0.5 ms), once the head's first STATUS half
-    // (205 us, then decoded) has been seen: the bridge does not wait for a first
-    // head status before it opens the gate (README "What is left (issue 6)"), so
-    // with 10 frames (0.1 ms) the gate of the alarmed head below opened from 0.110
-    // to 0.210 ms once the host took the STATUS words in halves as the firmware does.
+    // The link runs after 10 frames (0.11 ms), before the head's first status: the
+    // STATUS words are taken in 512-word halves as the firmware takes them, so
+    // nothing of the head is known before the first half ends (205 us at 40 MHz).
+    // The gate waits for that status (with `off_on_head_alarm` and the watchdog on).
     let cfg = "[controller]\nprotocol = \"xy2\"\n[head]\nprotocol = \"hans\"\n\
-               [failsafe]\nrecovery_frames = 50\n";
+               [failsafe]\nrecovery_frames = 10\n";
     let o = bridge(&d, cfg, "in.vcd", &["--head-status", "status.vcd"]);
+    let running = ms_after(&o.stderr, "link: Safe at 0.000 ms, Running at ");
+    let gate_on = ms_after(&o.stderr, "laser gate: off at 0.000 ms, on at ");
+    assert!((0.10..0.12).contains(&running), "{}", o.stderr);
+    assert!(gate_on >= 0.205 && gate_on > running, "{}", o.stderr);
     // The STATUS words are taken in whole 512-word halves, as the firmware does:
     // 400 frames are 19.5 halves at 40 MHz, the 19 whole ones hold 389 frames,
     // less the acquisition's first ~8 (measured: 381 items).
@@ -599,10 +614,10 @@ fn head_status_reaches_the_controller() {
     let s = controller_status(&d);
     assert!(s.initial(), "fault (high) before the link runs");
     assert!(!s.level_at(3_000_000_000), "OK at 3 ms");
-    assert!(o.stderr.contains("laser gate: off at 0.000 ms, on at"));
 
     // The same head with a power alarm: the controller sees a fault all along and
-    // the gate never opens (laser.off_on_head_alarm).
+    // the gate never opens (laser.off_on_head_alarm), not even in the 0.1 ms the
+    // link runs before the first status is in.
     let alarm = GalvoAlarms {
         power: true,
         ..HEALTHY
@@ -615,13 +630,21 @@ fn head_status_reaches_the_controller() {
     .unwrap();
     let o = bridge(&d, cfg, "in.vcd", &["--head-status", "status.vcd"]);
     assert_alarm_keeps_gate_off(&o, "power");
+    let running = ms_after(&o.stderr, "link: Safe at 0.000 ms, Running at ");
+    assert!((0.10..0.12).contains(&running), "{}", o.stderr);
     assert!(controller_status(&d).level_at(3_000_000_000));
 
-    // No status capture: STATUS_LOST once status_timeout_us has passed.
+    // No status capture: STATUS_LOST once status_timeout_us has passed, and the
+    // gate never opened.
     let cfg_short = format!("{cfg}status_timeout_us = 1000\n");
     let o = bridge(&d, &cfg_short, "in.vcd", &[]);
     assert_eq!(counter(&o.stderr, "head status losses"), 1, "{}", o.stderr);
     assert!(o.stderr.contains("STATUS_LOST"), "{}", o.stderr);
+    assert!(
+        o.stderr.contains("laser gate: off at 0.000 ms\n"),
+        "{}",
+        o.stderr
+    );
 }
 
 /// An XY2-100 head's STATUS line sending `word` in every output frame period, in

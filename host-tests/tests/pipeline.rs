@@ -10,7 +10,7 @@ use host_tests::pipeline::stimulus::{self, GenTiming, Stimulus, Timed};
 use host_tests::pipeline::tasks::{self, TaskError, TaskRun};
 use host_tests::pipeline::{Options, Pipeline, PipelineError};
 use host_tests::wave::{Ps, Waveform};
-use shared::bridge::{Config, HansDecode, LinkState, Protocol, Timing, ZSource};
+use shared::bridge::{Config, FailSafe, HansDecode, LinkState, Protocol, Timing, ZSource};
 use shared::model::{Alarms, Axis, ForwardFrame};
 use shared::xy3::FrameSize;
 
@@ -23,6 +23,9 @@ fn config(ctrl: Protocol, head: Protocol, timing: Timing) -> Config {
     c.z.source = ZSource::Input;
     c.output.timing = timing;
     c.failsafe.recovery_frames = 20;
+    // Most runs carry no head status: not supervised, so the gate does not wait for
+    // one (the tests of the head status turn the watchdog on).
+    c.failsafe.status_timeout_us = 0;
     c
 }
 
@@ -1155,6 +1158,8 @@ fn head_alarm_reaches_the_controller() {
     for (head, hform) in forms {
         for (ctrl, cform) in forms {
             let mut c = config(ctrl, head, Timing::FreeRunning);
+            // Supervised (the default): the gate waits for the head's first status.
+            c.failsafe.status_timeout_us = FailSafe::default().status_timeout_us;
             c.head.xy2.status = hform;
             c.controller.xy2.status = cform;
             let label = format!("{head:?} {hform:?} -> {ctrl:?} {cform:?}");
@@ -1191,6 +1196,7 @@ fn head_alarm_reaches_the_controller() {
                     v
                 }
             };
+            let first_status = status.iter().map(|s| s.t_ns).min().unwrap_or(u64::MAX);
             let (p, _stim, view) = run(&c, &t, &sent, |_| {}, status, 50_000);
             assert_output_is_sent(&c, &p, &view, &label);
             let k = p.counters();
@@ -1213,6 +1219,17 @@ fn head_alarm_reaches_the_controller() {
             let gate: Vec<(u64, bool)> = p.gate().iter().map(|g| (g.t_ns, g.value)).collect();
             assert_eq!(gate.len(), 3, "{label}: {gate:?}");
             assert!(gate[1].1 && !gate[2].1, "{label}: {gate:?}");
+            // Not before the link runs and the head's first status is in. A
+            // backchannel head's first packet (from 0.18 ms, ~0.6 ms at 115200
+            // baud) comes after the link runs (0.21 ms): the gate waits for it.
+            let running_at = p.states()[1].t_ns;
+            assert!(
+                gate[1].0 >= running_at.max(first_status),
+                "{label}: {gate:?} running at {running_at}, first status {first_status}"
+            );
+            if head == Protocol::Xy3 {
+                assert!(gate[1].0 > running_at, "{label}: {gate:?}");
+            }
             // (A backchannel head needs ~0.6 ms at 115200 baud for SYNC + packet.)
             assert!(
                 gate[2].0 >= alarm_at && gate[2].0 < alarm_at + 700_000,

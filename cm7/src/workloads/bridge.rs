@@ -54,7 +54,9 @@ fn run(w: &mut Window, config: Config) -> u32 {
     let Ok(mut bridge) = Bridge::new(&config) else {
         return 0;
     };
-    // Running before the window: one valid frame (recovery_frames = 1).
+    // Running before the window: one valid frame (recovery_frames = 1), and the
+    // head's status in, so the gate is on as in steady operation.
+    bridge.status_seen(0);
     bridge.on_line_event(0, LineEvent::Frame(ForwardFrame::default()));
     let frames = black_box(frames);
     w.measure(|| {

@@ -131,7 +131,12 @@ impl Chain {
         .ok()?;
         Some(Chain {
             rx: HansRx::new(FS_HZ, Mode::Super).ok()?,
-            bridge: Bridge::new(&config()).ok()?,
+            // The head's status in: the gate is on as in steady operation.
+            bridge: {
+                let mut b = Bridge::new(&config()).ok()?;
+                b.status_seen(0);
+                b
+            },
             xy3: HeadTx::Xy3 {
                 tx: xy3,
                 lines: Lines::XYZ,

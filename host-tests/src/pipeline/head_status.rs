@@ -244,7 +244,9 @@ impl HeadStatusIn {
                     if let Some(change) = deb.feed(now, high) {
                         status.alarms = change.health.alarms();
                     }
-                    seen += 1;
+                    // The level is the head's status only once the debouncer
+                    // accepted one: before, the head's state is not known.
+                    seen += u32::from(deb.health().is_some());
                 }
             }
             (Kind::Xy2Word(rx), HeadStatusInput::Xy2Word(samples)) => {

@@ -757,8 +757,9 @@ impl fmt::Display for Report {
         } else if cfg.failsafe.status_timeout_us > 0 {
             writeln!(
                 f,
-                "  no --head-status: the head's status counts as missing (STATUS_LOST after \
-                 failsafe.status_timeout_us = {} us; 0 turns the supervision off)",
+                "  no --head-status: the head's status counts as missing (laser gate off with \
+                 laser.off_on_head_alarm, STATUS_LOST after failsafe.status_timeout_us = {} us; \
+                 0 turns the supervision off)",
                 cfg.failsafe.status_timeout_us
             )?;
         }

@@ -400,7 +400,8 @@ pub struct FailSafe {
     /// Consecutive valid frames needed to leave the fail-safe states (1 ..= 1 000 000).
     pub recovery_frames: u32,
     /// No head status for this long -> status lost (0 = not supervised, else
-    /// 1 000 ..= 10 000 000 us).
+    /// 1 000 ..= 10 000 000 us). While supervised, [`LaserConfig::off_on_head_alarm`]
+    /// also keeps the gate off until the head's first status is in.
     pub status_timeout_us: u32,
 }
 
@@ -450,7 +451,9 @@ pub enum GateSource {
 pub struct LaserConfig {
     /// Laser gate source.
     pub gate: GateSource,
-    /// Force the gate off while the head reports any alarm (or its status is lost).
+    /// Force the gate off while the head reports any alarm, and, where the status is
+    /// supervised (`failsafe.status_timeout_us != 0`), until its first status is in
+    /// and while it is lost.
     pub off_on_head_alarm: bool,
     /// Forward HANS-100 laser control (DATA3 codes 1..=15) to a HANS-100 head. When
     /// off, or when the head is not HANS-100, laser control only drives the bridge's

@@ -26,7 +26,8 @@ pub const LASER_OFF: LaserControl = LaserControl::Power {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub struct LaserOutputs {
     /// Laser gate (enable) output: on only while running and permitted by
-    /// `laser.gate` and `laser.off_on_head_alarm`.
+    /// `laser.gate` and `laser.off_on_head_alarm` (which also waits for the head's
+    /// first status where the status watchdog is on).
     pub gate: bool,
     /// Laser power set-point from HANS-100 code 3 (0..=255), `None` until one was
     /// received; 0 while not running.
@@ -364,7 +365,8 @@ impl Bridge {
     fn output(&mut self, frame: Option<ForwardFrame>, head_back_rate: Option<BackRate>) -> Output {
         let running = self.sup.state() == LinkState::Running;
         let laser_cfg = &self.config.laser;
-        let head_alarm = self.status.head.alarms.any() || self.sup.status_lost();
+        // Unknown: not seen yet, or lost (`Supervisor::status_unknown`).
+        let head_alarm = self.status.head.alarms.any() || self.sup.status_unknown();
         let gate = running
             && !(laser_cfg.off_on_head_alarm && head_alarm)
             && (laser_cfg.gate == GateSource::LinkOk || self.mo_pa);

@@ -60,11 +60,19 @@
 //! | `Holding` / `Safe` | valid frame, run < `N` | count run, not forwarded (`not_forwarded`) |
 //! | `Holding` / `Safe` | `N`-th consecutive valid frame | `Running`, forward this frame, clear `INPUT_LOST` |
 //! | `Holding` / `Safe` | fault, or gap `>= T` | run := 0 |
-//! | any | no head status for `failsafe.status_timeout_us` | `STATUS_LOST` (gate off with `off_on_head_alarm`) |
-//! | any | [`Bridge::status_seen`] | clear `STATUS_LOST` |
+//! | (power-up) | `failsafe.status_timeout_us != 0` | head status not known: gate off with `off_on_head_alarm`, no alarm |
+//! | any | no head status for `failsafe.status_timeout_us` | `STATUS_LOST`, status not known (gate off with `off_on_head_alarm`) |
+//! | any | [`Bridge::status_seen`] | clear `STATUS_LOST`, status known |
 //!
-//! Laser gate = `Running` and not (`off_on_head_alarm` and any head alarm or
-//! `STATUS_LOST`) and (`gate = "link_ok"` or the latest HANS-100 MO and PA on).
+//! Laser gate = `Running` and not (`off_on_head_alarm` and (any head alarm or the
+//! head's status not known)) and (`gate = "link_ok"` or the latest HANS-100 MO and
+//! PA on). The status is known from the first [`Bridge::status_seen`] until a
+//! `STATUS_LOST`; with `status_timeout_us = 0` (no status supervised) always. So a
+//! head that reports an alarm from power-up never gets the gate, however short
+//! `recovery_frames` is. The wait before the first status is not reported to the
+//! controller: a head's first status normally arrives within milliseconds, and an
+//! alarm raised and cleared at every start-up would only be noise; if none comes,
+//! `STATUS_LOST` follows after the timeout as before.
 //!
 //! # Cost
 //! One input frame plus one output slot cost about 310-325 instructions on the

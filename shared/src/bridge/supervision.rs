@@ -1,6 +1,13 @@
 //! Link supervision: the input-loss / hold / safe / recovery state machine and the
 //! head-status watchdog (the table is in the [module docs](super)).
 //!
+//! With the watchdog on (`status_timeout_us != 0`) the head's status is *known*
+//! only from its first valid status on and until it is declared lost: before the
+//! first one the head may be reporting an alarm nobody has decoded yet, so the
+//! laser gate (with `off_on_head_alarm`) waits for it. That start-up wait is not an
+//! alarm: `STATUS_LOST` still comes only after the timeout. With the watchdog off
+//! no status is expected, and the status counts as known throughout.
+//!
 //! Times are nanoseconds from any monotonic clock. A clock that goes backwards
 //! counts as no time passed (saturating differences), so it can delay an alarm by
 //! the size of the jump but never raise a false recovery.
@@ -53,6 +60,10 @@ pub(crate) struct Supervisor {
     /// Last head status, or the first time the supervisor saw the clock.
     status_ref_ns: Option<u64>,
     status_lost: bool,
+    /// The watchdog is on and no valid head status arrived since start-up or since
+    /// it was declared lost (kept in this sense, not as "known", so the gate's
+    /// test has the shape and cost of a plain flag).
+    status_unknown: bool,
     /// Before this instant `poll` cannot change anything (0: always run the rules).
     quiet_until: u64,
     /// The status watchdog's part of `quiet_until` (kept for `valid`'s update).
@@ -76,6 +87,7 @@ impl Supervisor {
             status_timeout_ns: u64::from(f.status_timeout_us) * NS_PER_US,
             status_ref_ns: None,
             status_lost: false,
+            status_unknown: f.status_timeout_us != 0,
             quiet_until: 0,
             status_quiet: 0,
         }
@@ -110,6 +122,12 @@ impl Supervisor {
 
     pub fn status_lost(&self) -> bool {
         self.status_lost
+    }
+
+    /// Whether the head's status is not known (see the module docs): the laser
+    /// gate stays off then where `off_on_head_alarm` is set.
+    pub fn status_unknown(&self) -> bool {
+        self.status_unknown
     }
 
     /// Applies the passage of time up to `now_ns`: input timeout, end of hold,
@@ -160,6 +178,7 @@ impl Supervisor {
             let since = *self.status_ref_ns.get_or_insert(now_ns);
             if !self.status_lost && now_ns.saturating_sub(since) >= self.status_timeout_ns {
                 self.status_lost = true;
+                self.status_unknown = true;
                 ch.status_lost = true;
             }
         }
@@ -197,6 +216,7 @@ impl Supervisor {
     pub fn status_seen(&mut self, now_ns: u64) {
         self.status_ref_ns = Some(now_ns);
         self.status_lost = false;
+        self.status_unknown = false;
         self.refresh();
     }
 }
@@ -215,7 +235,9 @@ mod tests {
         /// The quiet-interval shortcut of `poll` never changes the outcome: a twin
         /// that always runs the full rules sees the same changes and states, over
         /// random event / poll / status / fault sequences with the clock jumping
-        /// backwards now and then, zero and non-zero status timeouts.
+        /// backwards now and then, zero and non-zero status timeouts. The head's
+        /// status is known exactly when the reference says so: with the watchdog
+        /// off always; with it on from a status seen until a status loss.
         #[test]
         fn quiet_shortcut_matches_the_full_rules(
             ops in proptest::collection::vec(op(), 1..300),
@@ -232,6 +254,7 @@ mod tests {
             let mut fast = Supervisor::new(&f);
             let mut full = Supervisor::new(&f);
             let mut now: u64 = 1_000_000;
+            let mut unknown = status_us != 0;
             for (kind, step, back) in ops {
                 let step = u64::from(step) * 1_000;
                 now = if back { now.saturating_sub(step) } else { now + step };
@@ -241,10 +264,14 @@ mod tests {
                     _ => (fast.poll(now), full.rules(now)),
                 };
                 prop_assert_eq!(a, b);
+                if a.status_lost {
+                    unknown = true;
+                }
                 match kind {
                     1 => {
                         fast.status_seen(now);
                         full.status_seen(now);
+                        unknown = false;
                     }
                     2 | 3 => prop_assert_eq!(fast.valid(now), full.valid(now)),
                     4 => {
@@ -254,6 +281,7 @@ mod tests {
                     _ => {}
                 }
                 prop_assert_eq!((fast.state(), fast.status_lost()), (full.state(), full.status_lost()));
+                prop_assert_eq!((fast.status_unknown(), full.status_unknown()), (unknown, unknown));
             }
         }
     }

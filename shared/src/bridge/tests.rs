@@ -43,9 +43,10 @@ fn raw(out: &Output, axis: Axis, bits: u8) -> Option<u32> {
 }
 
 /// A running bridge (XY2 -> XY2 by default) whose last valid frame arrived at the
-/// returned time.
+/// returned time, with the head's status seen (no alarm) at 0.
 fn running(cfg: &Config) -> (Bridge, u64) {
     let mut b = Bridge::new(cfg).unwrap();
+    b.status_seen(0);
     let mut t = 0;
     for i in 0..cfg.failsafe.recovery_frames {
         t = u64::from(i) * FP;
@@ -346,10 +347,85 @@ fn power_up_is_safe_until_n_valid_frames() {
     let out = b.tick(99 * FP + 1);
     assert_eq!(out.state, LinkState::Running);
     assert_eq!(out.alarms, Alarms::NONE);
-    assert!(out.laser.gate);
+    assert!(!out.laser.gate, "no head status seen yet");
     assert_eq!(raw(&out, Axis::X, 16), Some(0x1234));
     assert_eq!(raw(&out, Axis::Z, 16), Some(0x9ABC));
     assert_eq!(b.counters().recoveries, 1);
+    b.status_seen(99 * FP + 2);
+    assert!(b.tick(100 * FP).laser.gate);
+}
+
+#[test]
+fn gate_waits_for_the_first_head_status() {
+    // The default: watchdog on (200 ms), `off_on_head_alarm`.
+    let cfg = Config::default();
+    let mut b = Bridge::new(&cfg).unwrap();
+    let mut t = 0;
+    for i in 0..cfg.failsafe.recovery_frames {
+        t = u64::from(i) * FP;
+        b.on_line_event(t, ev(xyz16(1, 2, 3)));
+    }
+    // Running, the input kept alive, no status: the gate stays off, and the wait is
+    // no alarm until the watchdog's timeout.
+    while t + FP < 200 * MS {
+        t += FP;
+        b.on_line_event(t, ev(xyz16(1, 2, 3)));
+        let out = b.tick(t + 1);
+        assert_eq!(out.state, LinkState::Running);
+        assert_eq!(out.alarms, Alarms::NONE, "at {t} ns");
+        assert!(!out.laser.gate, "at {t} ns");
+    }
+    // The first status reports an alarm: still off.
+    b.head_status_mut().alarms = Alarms::TEMPERATURE;
+    b.status_seen(t + 2);
+    assert!(!b.tick(t + 3).laser.gate);
+    // The alarm clears: on.
+    b.head_status_mut().alarms = Alarms::NONE;
+    b.status_seen(t + 4);
+    assert!(b.tick(t + 5).laser.gate);
+
+    // No status at all: `STATUS_LOST` at the timeout, and the gate never opened.
+    let mut b = Bridge::new(&cfg).unwrap();
+    let mut t = 0;
+    let mut lost_at = None;
+    while t < 201 * MS {
+        b.on_line_event(t, ev(xyz16(1, 2, 3)));
+        let out = b.tick(t + 1);
+        assert!(!out.laser.gate, "at {t} ns");
+        if lost_at.is_none() && out.alarms.contains(Alarms::STATUS_LOST) {
+            lost_at = Some(t + 1);
+        }
+        t += FP;
+    }
+    // The watchdog counts from the first time the bridge saw the clock (0).
+    assert_eq!(lost_at, Some(200 * MS + 1));
+
+    // A status seen before the link runs counts: the gate opens with `Running`.
+    let mut b = Bridge::new(&cfg).unwrap();
+    b.status_seen(0);
+    for i in 0..cfg.failsafe.recovery_frames {
+        let t = u64::from(i) * FP;
+        b.on_line_event(t, ev(xyz16(1, 2, 3)));
+        assert_eq!(
+            b.tick(t + 1).laser.gate,
+            i + 1 == cfg.failsafe.recovery_frames
+        );
+    }
+
+    // Without `off_on_head_alarm`, or with the watchdog off (no status expected),
+    // the link alone opens the gate.
+    for (off_on_alarm, timeout_us) in [(false, 200_000), (true, 0)] {
+        let mut cfg = Config::default();
+        cfg.laser.off_on_head_alarm = off_on_alarm;
+        cfg.failsafe.status_timeout_us = timeout_us;
+        let mut b = Bridge::new(&cfg).unwrap();
+        for i in 0..cfg.failsafe.recovery_frames {
+            b.on_line_event(u64::from(i) * FP, ev(xyz16(1, 2, 3)));
+        }
+        let out = b.tick(100 * FP);
+        assert_eq!(out.state, LinkState::Running);
+        assert!(out.laser.gate, "{off_on_alarm} {timeout_us}");
+    }
 }
 
 #[test]
@@ -689,7 +765,9 @@ fn slaved(controller: Protocol, head: Protocol) -> Bridge {
     if head != Protocol::Hans {
         cfg.output.timing = Timing::Slaved;
     }
-    Bridge::new(&cfg).unwrap()
+    let mut b = Bridge::new(&cfg).unwrap();
+    b.status_seen(0);
+    b
 }
 
 /// Sends one frame and returns the output carrying it.
@@ -779,6 +857,7 @@ fn laser_control_forwarded_or_exposed() {
     cfg.failsafe.recovery_frames = 1;
     cfg.output.timing = Timing::Slaved;
     let mut b = Bridge::new(&cfg).unwrap();
+    b.status_seen(0);
     let out = pass(&mut b, 0, xyz16(1, 2, 3));
     assert!(!out.laser.gate, "no MO/PA yet");
     let mut f = xyz16(1, 2, 3);
