@@ -731,11 +731,17 @@ impl HansRx {
         // noisy edge on one of them costs nothing); the others are confirmed on
         // their own.
         let mut confirmed = 0u8;
+        // Nonzero when the reference's frame was confirmed only re-read at the
+        // phase its edges showed at a rounding step (`rephased`).
+        let mut shift = 0;
         if self.confirmed(reference, start, ref_delay, ratio, ref_pattern)
             || bits(same & !(1 << reference))
                 .any(|n| self.confirmed(n, start, delay(n), ratio, ref_pattern))
         {
             confirmed = same;
+        } else if let Some(s) = self.rephased(start, ref_delay, ratio, ref_pattern) {
+            confirmed = same;
+            shift = s;
         }
         for n in bits(differ) {
             if let Some(&p) = patterns.get(n) {
@@ -743,6 +749,9 @@ impl HansRx {
                     confirmed |= 1 << n;
                 }
             }
+        }
+        if shift != 0 {
+            self.timing.rephase(shift);
         }
         // A young lock decodes and tracks, but publishes nothing yet (acquisition,
         // see `timing::SETTLED`), nor does a coasted one before a verified frame
@@ -756,9 +765,10 @@ impl HansRx {
         };
         let verified = self.evaluate(patterns, aligned, same, confirmed, ref_pattern, &mut gated);
         // A young lock learns phase and rate from the verified reference's mid-pair
-        // edges (`timing::YOUNG`).
+        // edges (`timing::YOUNG`); not from a re-read frame's, which straddle a
+        // rounding step (its phase is the step's).
         if let (true, Some(ring)) = (
-            verified & (1 << reference) != 0 && self.timing.young(),
+            verified & (1 << reference) != 0 && self.timing.young() && shift == 0,
             self.rings.get(reference),
         ) {
             let at = start.wrapping_add(ref_delay as u32);
@@ -853,6 +863,56 @@ impl HansRx {
             )
             .is_some()
         }) && (!self.timing.settled() || confirm::tail(ring, head, ratio, pattern))
+    }
+
+    /// After the reference's frame (start edge at `start` plus `delay`, read with
+    /// `ratio` as `pattern`) failed its confirmation on every channel holding it:
+    /// the phase shift (Q16) at which it is confirmed after all, if its edges show
+    /// a rounding step ([`confirm::stepped`]: a clean line within a few hundred
+    /// ppm of a whole number of samples a bit, whose tail measures a sample off
+    /// the timing at the step). Only a settled lock's frame whose pattern passed
+    /// its checks and whose start edges lie in their windows (so the tail failed)
+    /// is tried: shifted to its successor's start edge, it must read the same
+    /// pattern there and pass every check of [`HansRx::confirmed`] at that phase,
+    /// the tail at the usual bounds. Out of line: the steady state never calls
+    /// it. The shift is at most the start-edge window (3/8 bit, 1.5 samples at
+    /// 4x), so every sample read lies within `need`'s two samples of slack.
+    #[cold]
+    #[inline(never)]
+    fn rephased(&mut self, start: u32, delay: i32, ratio: i32, pattern: u128) -> Option<i32> {
+        let n = self.reference;
+        let ring = self.rings.get(n)?;
+        if !self.timing.settled() || Frame::decode(pattern).is_err() {
+            return None;
+        }
+        let w = confirm_window(ratio);
+        let head = start.wrapping_add(delay as u32);
+        let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
+        // Each start edge against where the timing puts it, found as `confirmed`
+        // finds it.
+        let up = (1 << FRAC) - 1;
+        let edge = |at: u32| {
+            ring.first_fall(
+                at.wrapping_sub(w).wrapping_add(up),
+                at.wrapping_add(w).wrapping_add(up),
+            )
+            .map(|e| diff(e, at))
+        };
+        let (d0, d1) = (edge(head)?, edge(next)?);
+        if !confirm::stepped(ring, head, ratio, pattern, d0, d1) {
+            return None;
+        }
+        let first = head
+            .wrapping_add((ratio / 2) as u32 + HALF)
+            .wrapping_add(d1 as u32);
+        let again = ring.gather::<false>(
+            &mut self.table,
+            first,
+            ratio as u32,
+            &mut Centres::default(),
+        );
+        let shifted = delay.wrapping_add(d1);
+        (again == pattern && self.confirmed(n, start, shifted, ratio, pattern)).then_some(d1)
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that

@@ -641,5 +641,6 @@ mod gap;
 mod hunt;
 mod periods;
 mod ring;
+mod rounding;
 mod steady;
 mod tail;

@@ -157,6 +157,29 @@ impl Timing {
         self.period_ok(period)
     }
 
+    /// Moves the current frame's start edge, and so every later prediction, by
+    /// `shift` (Q16): the frame was re-read and confirmed at the phase its own
+    /// edges showed at a rounding step (`HansRx::rephased`, [`super::confirm`]),
+    /// so the next frames are read there. Phase only: a step says where the
+    /// line is now, not how fast it moves. A young fit's earlier points then
+    /// count as moved with it (its sums are residuals against the line). The
+    /// frame re-measured the phase (its start edges and tail agree within a
+    /// quarter sample), so it counts towards a re-centring ([`RECENTRE`]) as a
+    /// verified frame whose mid-pair edges refined the fit does.
+    pub fn rephase(&mut self, shift: i32) {
+        self.start = self.start.wrapping_add(shift as u32);
+        self.remeasured();
+    }
+
+    /// One more verified frame has measured the phase: counted by a re-centring
+    /// after a coast ([`RECENTRE`]).
+    fn remeasured(&mut self) {
+        if self.owed > 0 {
+            self.owed -= 1;
+            self.count_young();
+        }
+    }
+
     /// Counts one more frame of the young fit; at [`YOUNG`] the alpha-beta filter
     /// takes over at its settled gains from the fitted line.
     fn count_young(&mut self) {
@@ -200,10 +223,7 @@ impl Timing {
         {
             self.fit = fit;
             self.apply(self.start, c);
-            if self.owed > 0 {
-                self.owed -= 1;
-                self.count_young();
-            }
+            self.remeasured();
         }
     }
 
