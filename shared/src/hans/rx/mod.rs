@@ -33,7 +33,11 @@
 //!    deviations' mean size within 3/8 ([`confirm`]). Else the
 //!    phase may have drifted within the frame (a false or missing start edge moved
 //!    the tracking), and a tail read a bit off is random content whose complement
-//!    pairs pass at 2^-n: the channel counts a check failure instead. Channels
+//!    pairs pass at 2^-n: the channel counts a check failure instead (unless the
+//!    frame's edges show a rounding step of a clean line near a whole number of
+//!    samples a bit, [`confirm::stepped`]: then it is re-read at its successor's
+//!    phase and must pass every check there, and the timing moves there,
+//!    `HansRx::rephased`). Channels
 //!    that matched the reference centre for centre hold one pattern and are
 //!    confirmed together by the first of them whose edges all pass. The
 //!    **reference** channel's 125 bit centres are gathered two windows (of 32
@@ -730,18 +734,16 @@ impl HansRx {
         // any of them confirms the timing at its own delay (the reference first; a
         // noisy edge on one of them costs nothing); the others are confirmed on
         // their own.
+        // Failing that, a frame whose edges show a rounding step is confirmed
+        // re-read at the phase they show, and the timing moves there
+        // (`rephased`).
         let mut confirmed = 0u8;
-        // Nonzero when the reference's frame was confirmed only re-read at the
-        // phase its edges showed at a rounding step (`rephased`).
-        let mut shift = 0;
         if self.confirmed(reference, start, ref_delay, ratio, ref_pattern)
             || bits(same & !(1 << reference))
                 .any(|n| self.confirmed(n, start, delay(n), ratio, ref_pattern))
+            || self.rephased(ref_pattern)
         {
             confirmed = same;
-        } else if let Some(s) = self.rephased(start, ref_delay, ratio, ref_pattern) {
-            confirmed = same;
-            shift = s;
         }
         for n in bits(differ) {
             if let Some(&p) = patterns.get(n) {
@@ -749,9 +751,6 @@ impl HansRx {
                     confirmed |= 1 << n;
                 }
             }
-        }
-        if shift != 0 {
-            self.timing.rephase(shift);
         }
         // A young lock decodes and tracks, but publishes nothing yet (acquisition,
         // see `timing::SETTLED`), nor does a coasted one before a verified frame
@@ -765,10 +764,9 @@ impl HansRx {
         };
         let verified = self.evaluate(patterns, aligned, same, confirmed, ref_pattern, &mut gated);
         // A young lock learns phase and rate from the verified reference's mid-pair
-        // edges (`timing::YOUNG`); not from a re-read frame's, which straddle a
-        // rounding step (its phase is the step's).
+        // edges (`timing::YOUNG`; not a re-read frame's, `Timing::refine`).
         if let (true, Some(ring)) = (
-            verified & (1 << reference) != 0 && self.timing.young() && shift == 0,
+            verified & (1 << reference) != 0 && self.timing.young(),
             self.rings.get(reference),
         ) {
             let at = start.wrapping_add(ref_delay as u32);
@@ -865,25 +863,34 @@ impl HansRx {
         }) && (!self.timing.settled() || confirm::tail(ring, head, ratio, pattern))
     }
 
-    /// After the reference's frame (start edge at `start` plus `delay`, read with
-    /// `ratio` as `pattern`) failed its confirmation on every channel holding it:
-    /// the phase shift (Q16) at which it is confirmed after all, if its edges show
-    /// a rounding step ([`confirm::stepped`]: a clean line within a few hundred
-    /// ppm of a whole number of samples a bit, whose tail measures a sample off
-    /// the timing at the step). Only a settled lock's frame whose pattern passed
-    /// its checks and whose start edges lie in their windows (so the tail failed)
-    /// is tried: shifted to its successor's start edge, it must read the same
-    /// pattern there and pass every check of [`HansRx::confirmed`] at that phase,
-    /// the tail at the usual bounds. Out of line: the steady state never calls
-    /// it. The shift is at most the start-edge window (3/8 bit, 1.5 samples at
-    /// 4x), so every sample read lies within `need`'s two samples of slack.
+    /// After the reference's frame (read at the timing and its delay as
+    /// `pattern`) failed its confirmation on every channel holding it:
+    /// true when it is confirmed after all at another phase, and the timing has
+    /// moved there ([`timing::Timing::rephase`]), because its edges show a
+    /// rounding step ([`confirm::stepped`]: a clean line within a few hundred ppm
+    /// of a whole number of samples a bit, whose tail measures a sample off the
+    /// timing at the step). Only a settled lock's frame whose pattern passed its
+    /// checks and whose start edges lie in their windows (so the tail failed) is
+    /// tried: re-read from scratch at its successor's start edge, it must read the
+    /// same pattern there and pass every check of [`HansRx::confirmed`] at that
+    /// phase, the tail at the usual bounds. The channels that matched the
+    /// reference hold its pattern and are confirmed with it, as ever. Out of line
+    /// and cold: the steady state never calls it. The shift is at most the
+    /// start-edge window (3/8 bit, 1.5 samples at 4x), so every sample read lies
+    /// within `need`'s two samples of slack.
     #[cold]
     #[inline(never)]
-    fn rephased(&mut self, start: u32, delay: i32, ratio: i32, pattern: u128) -> Option<i32> {
+    fn rephased(&mut self, pattern: u128) -> bool {
         let n = self.reference;
-        let ring = self.rings.get(n)?;
+        let (start, ratio) = (self.timing.start, self.timing.ratio);
+        let (Some(ring), Some(delay)) = (
+            self.rings.get(n),
+            self.channels.get(n).and_then(|c| c.delay),
+        ) else {
+            return false;
+        };
         if !self.timing.settled() || Frame::decode(pattern).is_err() {
-            return None;
+            return false;
         }
         let w = confirm_window(ratio);
         let head = start.wrapping_add(delay as u32);
@@ -898,9 +905,11 @@ impl HansRx {
             )
             .map(|e| diff(e, at))
         };
-        let (d0, d1) = (edge(head)?, edge(next)?);
+        let (Some(d0), Some(d1)) = (edge(head), edge(next)) else {
+            return false;
+        };
         if !confirm::stepped(ring, head, ratio, pattern, d0, d1) {
-            return None;
+            return false;
         }
         let first = head
             .wrapping_add((ratio / 2) as u32 + HALF)
@@ -912,7 +921,12 @@ impl HansRx {
             &mut Centres::default(),
         );
         let shifted = delay.wrapping_add(d1);
-        (again == pattern && self.confirmed(n, start, shifted, ratio, pattern)).then_some(d1)
+        // A shift of zero would be the reading that failed.
+        let ok = d1 != 0 && again == pattern && self.confirmed(n, start, shifted, ratio, pattern);
+        if ok {
+            self.timing.rephase(d1);
+        }
+        ok
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that
