@@ -142,9 +142,12 @@ pub fn tail(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> bool {
 }
 
 /// How far (Q16 samples) each edge of a frame may lie from the rounding the others
-/// show for [`stepped`]: a quarter sample, the intra-frame drift at 0.2 % from a
-/// whole ratio (between the frame's start edge and its successor's) and far below
-/// a jittered line's spread (a sample and more at ±15 %).
+/// show for [`stepped`]: a quarter sample, what the edges' sub-sample phase drifts
+/// over a frame within 0.07 % of a whole ratio (125 bits x 0.002 sample), where
+/// the timing follows a plateau for several frames (from 0.1 % on the roundings
+/// change every frame or two, and the timing follows the line: 3.003 lost nothing
+/// before `stepped`), and far below a jittered line's spread (a sample and more
+/// at ±15 %).
 pub const STEP_SLACK: u32 = 1 << (FRAC - 2);
 
 /// True when the edges of the frame whose start edge is at `head` (as for

@@ -875,9 +875,10 @@ impl HansRx {
     /// same pattern there and pass every check of [`HansRx::confirmed`] at that
     /// phase, the tail at the usual bounds. The channels that matched the
     /// reference hold its pattern and are confirmed with it, as ever. Out of line
-    /// and cold: the steady state never calls it. The shift is at most the
-    /// start-edge window (3/8 bit, 1.5 samples at 4x), so every sample read lies
-    /// within `need`'s two samples of slack.
+    /// and cold: the steady state never calls it. The successor's edge was found
+    /// in the window `need` waits for and lies in the shifted window, so samples
+    /// past that window's end (which may not have arrived) cannot change its
+    /// outcome; the centres read lie before it.
     #[cold]
     #[inline(never)]
     fn rephased(&mut self, pattern: u128) -> bool {

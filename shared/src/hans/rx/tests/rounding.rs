@@ -3,7 +3,7 @@
 //! sub-sample phase, so every measured edge has the same rounding, which steps
 //! by a whole sample each time that phase crosses a sample. A frame whose tail is
 //! measured a sample off its timing at such a step is re-read at the phase its
-//! own start edges show ([`HansRx::rephased`]); nothing else changes.
+//! successor's start edge shows (`HansRx::rephased`); nothing else changes.
 
 use super::*;
 
@@ -22,10 +22,12 @@ fn clean(ratio: f64, phase: f64, hz: u32, mode: Mode, seed: u32) -> (Vec<Frame>,
 }
 
 /// Every sent frame after the first lock is published, in order, and nothing
-/// else, at ratios from exactly 3 to 0.1 % above it (a step every 2.7 to 27 000
-/// frames), with 3.2 and 4 (and the same offsets from them) as controls, in
-/// normal and super mode, at several sampling phases. Before the re-read,
-/// 3.0001 published 343 of 391 frames and 3.0003 223.
+/// else, at ratios from exactly 3 (no step) to 0.1 % above it (a step every 160
+/// frames at 3.00005 to every 2.7 at 3.003), with 3.2 and 4 and offsets from
+/// them as controls, in normal and super mode, at three sampling phases. Before
+/// the re-read (`HansRx::rephased`), 3.00005 to 3.001 lost frames at some or
+/// all phases (3.0001: 331 to 343 of 391 published, 3.0003: 211 to 223, 3.0005:
+/// 103; README "Known limits").
 #[test]
 fn clean_lines_near_whole_ratios_lose_nothing() {
     let cases = [
