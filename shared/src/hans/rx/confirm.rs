@@ -50,6 +50,29 @@
 //! clean line up to half a sample of centre rounding and lost frames at ±20 %
 //! jitter (`limits_over_many_locks`, tried and dropped).
 //!
+//! # A rounding step
+//! Within a few hundred ppm of a whole number of samples a bit (3.0003 at 37.5
+//! MHz), every edge of a clean line sits at nearly the same sub-sample phase, so
+//! every measured edge has the same rounding (up to half a sample), which steps
+//! by a whole sample each time that phase crosses a sample (every 1 / (125 x
+//! 0.0003) = 27 frames). The timing has followed the plateau between two steps
+//! exactly; after a step the tail measures a sample off it, while the bits are
+//! read half a sample off (the line crossed the sample between the two
+//! roundings). No bound on the mean alone tells that from a tail read 0.45 bit
+//! (1.35 samples) off whose edges round towards the timing: both measure 0.85 to
+//! 1 sample. What only the step shows is [`stepped`]: every measured edge of
+//! the frame, its start edge, the checked mid-pair edges and its successor's
+//! start edge, lies within [`STEP_SLACK`] of one rounding, the successor's, or
+//! (the edges before the step, in line order) of the one a sample before it. A
+//! jittered line spreads its edges over a sample and more, so ten of them fit
+//! that only on a line without jitter; an excursion of the line within the frame
+//! (the stop field taking it back up) leaves the successor's edge at the
+//! earlier rounding. The receiver then re-reads the frame at the successor's
+//! phase and publishes it only if it reads the same pattern there and passes
+//! every check at that phase at the bounds above (`HansRx::rephased`): the tail
+//! is still judged against a phase it had no say in, a single start edge that
+//! the nine other edges of the frame agree with within a quarter sample.
+//!
 //! # Cost
 //! One edge is ~21 instructions on the M7 (two window loads, a funnel shift, a
 //! count, two sums), ~230 per checked channel and frame with the set-up and the
@@ -116,6 +139,54 @@ pub fn tail(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> bool {
     let w = tail_window(ratio);
     sum.unsigned_abs() <= TAIL_PAIRS.wrapping_mul(w)
         && spread <= TAIL_PAIRS.wrapping_mul(w.wrapping_add(w / 2))
+}
+
+/// How far (Q16 samples) each edge of a frame may lie from the rounding the others
+/// show for [`stepped`]: a quarter sample, what the edges' sub-sample phase drifts
+/// over a frame within 0.07 % of a whole ratio (125 bits x 0.002 sample), where
+/// the timing follows a plateau for several frames (from 0.1 % on the roundings
+/// change every frame or two, and the timing follows the line: 3.003 lost nothing
+/// before `stepped`), and far below a jittered line's spread (a sample and more
+/// at ±15 %).
+pub const STEP_SLACK: u32 = 1 << (FRAC - 2);
+
+/// True when the edges of the frame whose start edge is at `head` (as for
+/// [`tail`]) show a rounding step (module docs): its start edge, measured
+/// `start` (Q16) from `head`, its last [`TAIL_PAIRS`] mid-pair edges and its
+/// successor's start edge, measured `next` from where the timing puts it, each
+/// lie within [`STEP_SLACK`] of `next`, or of a sample nearer the timing than
+/// `next` as long as no earlier one lay at `next` (a step within the frame).
+pub fn stepped(ring: &Ring, head: u32, ratio: i32, pattern: u128, start: i32, next: i32) -> bool {
+    let before = next.wrapping_sub(next.signum() << FRAC);
+    let near = |r: i32, to: i32| r.wrapping_sub(to).unsigned_abs() <= STEP_SLACK;
+    // Set from the first edge at the successor's rounding on.
+    let mut stepped = false;
+    let mut on = |r: i32| {
+        if near(r, next) {
+            stepped = true;
+            true
+        } else {
+            !stepped && near(r, before)
+        }
+    };
+    if !on(start) {
+        return false;
+    }
+    // The tail's deviations as [`tail`] measures them.
+    let mut edges = PairEdges::new(head, ratio, FIRST);
+    let step = (ratio as u32).wrapping_mul(2);
+    let mut at = head
+        .wrapping_add((ratio as u32).wrapping_mul(2 * FIRST + 1))
+        .wrapping_add(HALF);
+    let mut bits = (pattern as u32) << (2 * FIRST - 93);
+    for _ in 0..TAIL_PAIRS {
+        if !on((edges.count_on(ring, bits) << FRAC).wrapping_sub(at) as i32) {
+            return false;
+        }
+        at = at.wrapping_add(step);
+        bits <<= 2;
+    }
+    true
 }
 
 #[cfg(test)]
@@ -267,6 +338,44 @@ mod tests {
     }
 
     #[test]
+    fn a_rounding_step_is_told_from_an_excursion() {
+        // Timing at 3 samples a bit from 20.5. The line's boundary `k` lies at
+        // 20.5 + 3k + `off(k)`; 0.52 rounds a sample late (the edge just after a
+        // sample: the step), 0.02 onto the timing (the plateau before it).
+        let head = q(20.5) as u32;
+        let (r, one) = (q(3.0), q(1.0));
+        let on = |off: &dyn Fn(usize) -> f64, start: i32, next: i32| {
+            let ring = ring_of(pattern(), |k| 20.5 + 3.0 * k as f64 + off(k));
+            stepped(&ring, head, r, read(&ring, head, r), start, next)
+        };
+        // The whole frame a sample off (its start edge and tail), or from any
+        // point before or within the tail on; the successor too.
+        assert!(on(&|_| 0.52, one, one));
+        assert!(on(&|_| 0.52, q(0.9), q(1.1)));
+        for step in [1, 60, 107, 108, 110, 121] {
+            assert!(
+                on(&|k| if k < step { 0.02 } else { 0.52 }, 0, one),
+                "{step}"
+            );
+        }
+        // The same downwards (a line slower than the timing).
+        assert!(on(&|_| -0.98, -one, -one));
+        assert!(on(&|k| if k < 110 { 0.02 } else { -0.98 }, 0, -one));
+        // A tail a sample off between start edges on time: an excursion.
+        assert!(!on(&|_| 0.52, 0, 0));
+        assert!(!on(&|_| 0.52, one, 0));
+        // Back to the earlier rounding after the step, or a tail half on each.
+        assert!(!on(&|k| if k < 110 { 0.52 } else { 0.02 }, one, one));
+        assert!(!on(&|k| if k % 4 < 2 { 0.02 } else { 0.52 }, 0, one));
+        // Two samples off, or the start edge a third of a sample from the rest.
+        assert!(!on(&|_| 1.52, one, one));
+        assert!(!on(&|_| 0.52, q(0.6), one));
+        // Jitter of ±0.2 sample around a step's rounding: the edges fall on
+        // either side of a sample, not on one rounding.
+        assert!(!on(&|k| if k % 3 == 0 { 0.32 } else { 0.72 }, one, one));
+    }
+
+    #[test]
     fn garbage_never_panics() {
         let words: Vec<u16> = (0..64u16).map(|w| w.wrapping_mul(0x9E37)).collect();
         let mut ring = Ring::default();
@@ -274,6 +383,8 @@ mod tests {
         for s in (0..70_000u32).step_by(997) {
             for ratio in [0, -1, q(3.3), i32::MAX, i32::MIN] {
                 let _ = tail(&ring, s.wrapping_mul(40_503), ratio, u128::MAX);
+                let d = s.wrapping_mul(7_919) as i32;
+                let _ = stepped(&ring, s.wrapping_mul(40_503), ratio, u128::MAX, d, -d);
             }
         }
     }

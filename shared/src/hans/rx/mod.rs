@@ -33,7 +33,11 @@
 //!    deviations' mean size within 3/8 ([`confirm`]). Else the
 //!    phase may have drifted within the frame (a false or missing start edge moved
 //!    the tracking), and a tail read a bit off is random content whose complement
-//!    pairs pass at 2^-n: the channel counts a check failure instead. Channels
+//!    pairs pass at 2^-n: the channel counts a check failure instead (unless the
+//!    frame's edges show a rounding step of a clean line near a whole number of
+//!    samples a bit, [`confirm::stepped`]: then it is re-read at its successor's
+//!    phase and must pass every check there, and the timing moves there,
+//!    `HansRx::rephased`). Channels
 //!    that matched the reference centre for centre hold one pattern and are
 //!    confirmed together by the first of them whose edges all pass. The
 //!    **reference** channel's 125 bit centres are gathered two windows (of 32
@@ -730,10 +734,14 @@ impl HansRx {
         // any of them confirms the timing at its own delay (the reference first; a
         // noisy edge on one of them costs nothing); the others are confirmed on
         // their own.
+        // Failing that, a frame whose edges show a rounding step is confirmed
+        // re-read at the phase they show, and the timing moves there
+        // (`rephased`).
         let mut confirmed = 0u8;
         if self.confirmed(reference, start, ref_delay, ratio, ref_pattern)
             || bits(same & !(1 << reference))
                 .any(|n| self.confirmed(n, start, delay(n), ratio, ref_pattern))
+            || self.rephased(ref_pattern)
         {
             confirmed = same;
         }
@@ -756,7 +764,7 @@ impl HansRx {
         };
         let verified = self.evaluate(patterns, aligned, same, confirmed, ref_pattern, &mut gated);
         // A young lock learns phase and rate from the verified reference's mid-pair
-        // edges (`timing::YOUNG`).
+        // edges (`timing::YOUNG`; not a re-read frame's, `Timing::refine`).
         if let (true, Some(ring)) = (
             verified & (1 << reference) != 0 && self.timing.young(),
             self.rings.get(reference),
@@ -853,6 +861,73 @@ impl HansRx {
             )
             .is_some()
         }) && (!self.timing.settled() || confirm::tail(ring, head, ratio, pattern))
+    }
+
+    /// After the reference's frame (read at the timing and its delay as
+    /// `pattern`) failed its confirmation on every channel holding it:
+    /// true when it is confirmed after all at another phase, and the timing has
+    /// moved there ([`timing::Timing::rephase`]), because its edges show a
+    /// rounding step ([`confirm::stepped`]: a clean line within a few hundred ppm
+    /// of a whole number of samples a bit, whose tail measures a sample off the
+    /// timing at the step). Only a settled lock's frame whose pattern passed its
+    /// checks and whose start edges lie in their windows (so the tail failed) is
+    /// tried: re-read from scratch at its successor's start edge, it must read the
+    /// same pattern there and pass every check of [`HansRx::confirmed`] at that
+    /// phase, the tail at the usual bounds. The channels that matched the
+    /// reference hold its pattern and are confirmed with it, as ever. Out of line
+    /// and cold: the steady state never calls it. The successor's edge was found
+    /// in the window `need` waits for and lies in the shifted window, so samples
+    /// past that window's end (which may not have arrived) cannot change its
+    /// outcome; the centres read lie before it.
+    #[cold]
+    #[inline(never)]
+    fn rephased(&mut self, pattern: u128) -> bool {
+        let n = self.reference;
+        let (start, ratio) = (self.timing.start, self.timing.ratio);
+        let (Some(ring), Some(delay)) = (
+            self.rings.get(n),
+            self.channels.get(n).and_then(|c| c.delay),
+        ) else {
+            return false;
+        };
+        if !self.timing.settled() || Frame::decode(pattern).is_err() {
+            return false;
+        }
+        let w = confirm_window(ratio);
+        let head = start.wrapping_add(delay as u32);
+        let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
+        // Each start edge against where the timing puts it, found as `confirmed`
+        // finds it.
+        let up = (1 << FRAC) - 1;
+        let edge = |at: u32| {
+            ring.first_fall(
+                at.wrapping_sub(w).wrapping_add(up),
+                at.wrapping_add(w).wrapping_add(up),
+            )
+            .map(|e| diff(e, at))
+        };
+        let (Some(d0), Some(d1)) = (edge(head), edge(next)) else {
+            return false;
+        };
+        if !confirm::stepped(ring, head, ratio, pattern, d0, d1) {
+            return false;
+        }
+        let first = head
+            .wrapping_add((ratio / 2) as u32 + HALF)
+            .wrapping_add(d1 as u32);
+        let again = ring.gather::<false>(
+            &mut self.table,
+            first,
+            ratio as u32,
+            &mut Centres::default(),
+        );
+        let shifted = delay.wrapping_add(d1);
+        // A shift of zero would be the reading that failed.
+        let ok = d1 != 0 && again == pattern && self.confirmed(n, start, shifted, ratio, pattern);
+        if ok {
+            self.timing.rephase(d1);
+        }
+        ok
     }
 
     /// Checks every pattern and applies the decode mode. Returns the channels that

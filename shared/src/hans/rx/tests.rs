@@ -654,5 +654,6 @@ mod gap;
 mod hunt;
 mod periods;
 mod ring;
+mod rounding;
 mod steady;
 mod tail;

@@ -70,6 +70,10 @@ pub struct Timing {
     owed: i32,
     /// The least-squares fit of a young lock.
     fit: Fit,
+    /// The current frame was re-read at a rounding step ([`Timing::rephase`]):
+    /// its mid-pair edges straddle the step, so [`Timing::refine`] does not
+    /// take them. Cleared by the next young frame, a lock and a coast.
+    rephased: bool,
 }
 
 impl Timing {
@@ -85,6 +89,7 @@ impl Timing {
             fits: 0,
             owed: 0,
             fit: Fit::lock(),
+            rephased: false,
         }
     }
 
@@ -99,6 +104,7 @@ impl Timing {
     pub fn lock(&mut self, found: Found) {
         self.fits = found.edges;
         self.owed = 0;
+        self.rephased = false;
         self.fit = found.fit;
         self.set(found.start, found.period);
     }
@@ -143,6 +149,7 @@ impl Timing {
             if self.owed == 0 {
                 self.count_young();
             }
+            self.rephased = false;
             self.fit.next_frame();
             let c = self.fit.add(&Points::start_edge(err));
             return self.apply(self.predicted(), c);
@@ -155,6 +162,30 @@ impl Timing {
         let period = self.period.saturating_add(err * 6 / (k * (k + 1)));
         self.set(start, period);
         self.period_ok(period)
+    }
+
+    /// Moves the current frame's start edge, and so every later prediction, by
+    /// `shift` (Q16): the frame was re-read and confirmed at the phase its own
+    /// edges showed at a rounding step (`HansRx::rephased`, [`super::confirm`]),
+    /// so the next frames are read there. Phase only: a step says where the
+    /// line is now, not how fast it moves. A young fit's earlier points then
+    /// count as moved with it (its sums are residuals against the line). The
+    /// frame re-measured the phase (its start edges and tail agree within a
+    /// quarter sample), so it counts towards a re-centring ([`RECENTRE`]) as a
+    /// verified frame whose mid-pair edges refined the fit does.
+    pub fn rephase(&mut self, shift: i32) {
+        self.start = self.start.wrapping_add(shift as u32);
+        self.rephased = true;
+        self.remeasured();
+    }
+
+    /// One more verified frame has measured the phase: counted by a re-centring
+    /// after a coast ([`RECENTRE`]).
+    fn remeasured(&mut self) {
+        if self.owed > 0 {
+            self.owed -= 1;
+            self.count_young();
+        }
     }
 
     /// Counts one more frame of the young fit; at [`YOUNG`] the alpha-beta filter
@@ -189,8 +220,13 @@ impl Timing {
     /// the channel's delay) to a young lock's fit and moves the timing to the new
     /// line. Points that would move the phase by half a bit or more, or the period
     /// out of bounds, are not taken: a frame read that far off cannot have
-    /// verified.
+    /// verified. Nor are those of a frame re-read at a rounding step
+    /// ([`Timing::rephase`]): its earlier edges lie a sample from its later ones,
+    /// which would tilt the line; the step's phase is all it tells.
     pub fn refine(&mut self, p: &Points) {
+        if self.rephased {
+            return;
+        }
         let mut fit = self.fit;
         let c = fit.add(p);
         let period = self.period.saturating_add(c.period);
@@ -200,10 +236,7 @@ impl Timing {
         {
             self.fit = fit;
             self.apply(self.start, c);
-            if self.owed > 0 {
-                self.owed -= 1;
-                self.count_young();
-            }
+            self.remeasured();
         }
     }
 
@@ -233,6 +266,7 @@ impl Timing {
         self.fit = Fit::prior(FIT_FRAMES as u32, frames);
         self.fits = YOUNG - RECENTRE;
         self.owed = RECENTRE;
+        self.rephased = false;
     }
 
     /// True when the rate is known well enough to predict across a gap: the

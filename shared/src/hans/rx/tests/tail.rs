@@ -67,7 +67,10 @@ fn a_tail_read_off_its_timing_is_not_published() {
     // every checked edge of a line without jitter is measured with the same
     // rounding, up to half a sample (an eighth of a bit) towards the timing
     // (README "Known limits").
-    for (ratio, hz) in [(3.0, 37_500_000), (3.2, 40_000_000)] {
+    // 3.0003: within the rounding steps of a line near a whole ratio, which a
+    // frame whose edges show one is re-read across (`HansRx::rephased`): the
+    // excursion's successor edge is not at the tail's rounding.
+    for (ratio, hz) in [(3.0, 37_500_000), (3.0003, 37_500_000), (3.2, 40_000_000)] {
         for phase in [0.1, 0.45, 0.7] {
             let words = excursion(&line_bits(&sent), ratio, phase, 0.65);
             for mode in MODES {
