@@ -81,6 +81,17 @@ struct Half {
     asked: bool,
 }
 
+/// Random frames, enough to fill every half of a capture.
+fn frames(rng: &mut ChaCha8Rng) -> Vec<Frame> {
+    let n = (HALVES as usize * HALF * 16 * 12_500_000 / FS_HZ as usize) / 125 + 16;
+    (0..n)
+        .map(|_| {
+            let mut w = || rng.random_range(0..=WORD_MAX);
+            Frame::new(w(), w(), w()).unwrap()
+        })
+        .collect()
+}
+
 /// Runs the firmware's STATUS path over `words`: `hans_status_in` passes on every
 /// [`EVERY`]-th half, or every half while the decoder asks for it, and
 /// `hans_status` follows the signal with one receiver (`follow_signal`); or, as
@@ -156,14 +167,7 @@ fn every_second_half_is_decoded_without_a_new_lock() {
         for jitter in [0.0, 0.25] {
             for _ in 0..16 {
                 let seed: u64 = rng.random();
-                // Enough frames to fill every half.
-                let n = (HALVES as usize * HALF * 16 * 12_500_000 / FS_HZ as usize) / 125 + 16;
-                let sent: Vec<Frame> = (0..n)
-                    .map(|_| {
-                        let mut w = || rng.random_range(0..=WORD_MAX);
-                        Frame::new(w(), w(), w()).unwrap()
-                    })
-                    .collect();
+                let sent = frames(&mut rng);
                 let words = capture(&sent, offset, jitter, seed);
                 assert!(words.len() >= HALVES as usize * HALF);
                 let at = format!("{offset} %, ±{jitter} bit, seed {seed}");
@@ -267,13 +271,7 @@ fn pipeline_hans_status() {
         for jitter in [0.0, 0.25] {
             for _ in 0..4 {
                 let seed: u64 = rng.random();
-                let n = (HALVES as usize * HALF * 16 * 12_500_000 / FS_HZ as usize) / 125 + 16;
-                let sent: Vec<Frame> = (0..n)
-                    .map(|_| {
-                        let mut w = || rng.random_range(0..=WORD_MAX);
-                        Frame::new(w(), w(), w()).unwrap()
-                    })
-                    .collect();
+                let sent = frames(&mut rng);
                 let words = capture(&sent, offset, jitter, seed);
                 let words = &words[..HALVES as usize * HALF];
                 let at = format!("{offset} %, ±{jitter} bit, seed {seed}");
