@@ -26,6 +26,12 @@ const STOP_BITS: u8 = 0b111;
 const WORD_SHIFTS: [u32; 3] = [83, 43, 3];
 /// The complement bit of every pair of a 40-bit line field (bit 2i for D_i).
 const PAIR_LOW_BITS: u64 = 0x55_5555_5555;
+/// The low (complement) bit of the start pair and of every data pair: the odd bits
+/// 3..=123 of the pattern.
+const PAIRS_AND_START: u128 = 0x0AAA_AAAA_AAAA_AAAA_AAAA_AAAA_AAAA_AAA8;
+/// The pattern bits with a fixed value: padding 127..125 and the start bit 124 (0),
+/// the stop bits 2..0 (1).
+const FIXED: u128 = 0xF << 124 | STOP_BITS as u128;
 /// The 125 pattern bits, left-aligned in 128 (used for byte packing).
 const ALIGNED_MASK: u128 = !0 << 3;
 
@@ -136,15 +142,23 @@ pub struct Frame {
     data3: u32,
 }
 
-/// Moves bit i of a 10-bit value to bit 2i (shift-and-mask interleave in 32-bit
-/// arithmetic, which the M7 does in one instruction per step; a 64-bit version costs
-/// two or three per step, and this runs for every transmitted frame).
-fn spread10(x: u32) -> u32 {
-    let mut v = x & 0x3FF;
-    v = (v | v << 8) & 0x0003_00FF;
-    v = (v | v << 4) & 0x0003_0F0F;
-    v = (v | v << 2) & 0x0003_3333;
-    (v | v << 1) & 0x0005_5555
+/// Moves bit i of the low 16 bits of `x` to bit 2i (shift-and-mask interleave in
+/// 32-bit arithmetic: on the M7 each step is one OR with a shifted operand and one
+/// mask whose constant is an immediate; a 64-bit version costs two or three per
+/// step, and this runs for every transmitted frame).
+fn spread16(x: u32) -> u32 {
+    let mut v = x & 0xFFFF;
+    v = (v | v << 8) & 0x00FF_00FF;
+    v = (v | v << 4) & 0x0F0F_0F0F;
+    v = (v | v << 2) & 0x3333_3333;
+    (v | v << 1) & 0x5555_5555
+}
+
+/// [`spread16`] for the low 4 bits of `x`.
+fn spread4(x: u32) -> u32 {
+    let mut v = x & 0xF;
+    v = (v | v << 2) & 0x33;
+    (v | v << 1) & 0x55
 }
 
 /// Gathers bits 0, 2, 4, … 62 into bits 0..32 (the inverse of an interleave).
@@ -161,7 +175,7 @@ fn gather_even(field: u64) -> u32 {
 /// The 40-bit line field of a 20-bit word: D19 at bit 39, its complement at bit 38,
 /// … D0 at bit 1, its complement at bit 0.
 fn spread_pairs(x: u32) -> u64 {
-    let data = u64::from(spread10(x >> 10)) << 20 | u64::from(spread10(x));
+    let data = u64::from(spread4(x >> 16)) << 32 | u64::from(spread16(x));
     // The complements are the even bits of the inverted data: `!x` spread is the
     // all-pairs mask minus `x` spread, so one interleave serves both.
     data << 1 | (data ^ 0x55_5555_5555)
@@ -225,6 +239,13 @@ impl Frame {
 
     /// The 125-bit line pattern, first transmitted bit at bit 124.
     pub fn encode(&self) -> u128 {
+        self.pattern()
+    }
+
+    /// [`Frame::encode`], inlined so that [`Frame::write_at`]'s shift of the
+    /// pattern folds into the placement of the three fields.
+    #[inline(always)]
+    fn pattern(&self) -> u128 {
         let mut p = u128::from(START_PAIR) << 123 | u128::from(STOP_BITS);
         for (word, shift) in self.words().into_iter().zip(WORD_SHIFTS) {
             p |= u128::from(spread_pairs(word)) << shift;
@@ -235,6 +256,37 @@ impl Frame {
     /// Decodes an aligned 125-bit pattern (first bit at bit 124), checking the padding,
     /// the start pair, all 60 complement pairs and the stop bits, in that order.
     pub fn decode(pattern: u128) -> Result<Frame, DecodeError> {
+        // Every receiver checks every frame, and nearly all of them are valid: one
+        // word-wise test of the whole pattern decides, and only a pattern that fails
+        // it goes through the checks one by one to name the first failing one.
+        // The start pair is a complement pair too (`0` then `1`), so a pair is right
+        // at every odd bit 3..=123 where the bit and the one above it differ; bits
+        // 127..124 (padding, start bit) are 0 and bits 2..0 (stop) are 1.
+        let differ = pattern ^ pattern >> 1;
+        let wrong = (!differ & PAIRS_AND_START) | (pattern ^ STOP_BITS as u128) & FIXED;
+        if wrong != 0 {
+            return Frame::decode_checked(pattern);
+        }
+        // Truncations intended: the data bits of a valid pattern are its even bits
+        // 4..=122, gathered from each 64-bit half (bits 124 and 126 are then zero).
+        let low = gather_even(pattern as u64);
+        let high = gather_even((pattern >> 64) as u64);
+        Ok(Frame {
+            // D_i of DATA1 at bit 84 + 2i, gathered bit 10 + i of `high`.
+            data1: high >> 10 & WORD_MAX,
+            // D_i of DATA2 at bit 44 + 2i: D0..D9 in `low` from bit 22, D10..D19 in
+            // `high` from bit 0.
+            data2: (low >> 22 | high << 10) & WORD_MAX,
+            // D_i of DATA3 at bit 4 + 2i, gathered bit 2 + i of `low`.
+            data3: low >> 2 & WORD_MAX,
+        })
+    }
+
+    /// [`Frame::decode`] check by check, in transmission order, to name the first
+    /// failing check of a pattern the word-wise test rejected.
+    #[cold]
+    #[inline(never)]
+    fn decode_checked(pattern: u128) -> Result<Frame, DecodeError> {
         // Truncations below are intended: the values are masked to 2 or 3 bits.
         let padding = (pattern >> FRAME_BITS) as u8;
         if padding != 0 {
@@ -301,7 +353,7 @@ impl Frame {
         // read-modify-write run on four big-endian u32 words (a variable u128 shift
         // costs several times more on the M7); only the boundary words get partial
         // masks, the middle ones are replaced.
-        let value = self.encode() << 3;
+        let value = self.pattern() << 3;
         let head = buf.get_mut(first..first + 16).ok_or(out_of_buffer)?;
         // `sub` < 8: shifting by `(x << 1) << (31 - sub)` brings in the neighbour
         // word's low bits without a 32-bit shift when `sub` is 0.
