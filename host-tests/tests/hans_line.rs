@@ -436,20 +436,25 @@ fn limits_over_many_locks() {
         "first mean",
         "first max"
     );
-    // (jitter, offset in percent (None: random within ±1 %), requirement)
+    // (jitter, offset in percent (None: random within ±1 %), requirement, most
+    // frames all the point's locks may lose together)
     let points = [
-        (0.20, Some(0.0), Must::LoseNothing),
+        (0.20, Some(0.0), Must::LoseNothing, 0),
         // The hunt reads the frame between its two start edges and fits its line
         // on the frame's mid-pair edges (`shared::hans::rx::hunt`).
-        (0.25, Some(0.0), Must::LoseNothing),
-        (0.25, None, Must::AcquireInTime),
-        (0.0, Some(2.5), Must::Measure),
-        (0.30, Some(0.0), Must::Measure),
+        (0.25, Some(0.0), Must::LoseNothing, 0),
+        // One frame at 37.5 MHz (seed 20023, frame 53): its last 8 mid-pair
+        // edges' jitter alone put their mean 0.28 bit off a timing within 0.01
+        // bit of the line, beyond the tail's quarter-bit bound (README "Known
+        // limits"). Two such frames would be a regression.
+        (0.25, None, Must::AcquireInTime, 1),
+        (0.0, Some(2.5), Must::Measure, usize::MAX),
+        (0.30, Some(0.0), Must::Measure, usize::MAX),
         // A clean line: the acquisition time (first published frame) is printed.
-        (0.0, Some(0.0), Must::LoseNothing),
+        (0.0, Some(0.0), Must::LoseNothing, 0),
     ];
     for fs in [37.5e6, 40e6, 50e6] {
-        for (p, &(jitter, offset, must)) in points.iter().enumerate() {
+        for (p, &(jitter, offset, must, most)) in points.iter().enumerate() {
             let (mut losing, mut late_locks, mut lost_all, mut worst) = (0, 0, 0, 0);
             let (mut first_all, mut first_max) = (0, 0);
             for lock in 0..LOCKS {
@@ -478,6 +483,10 @@ fn limits_over_many_locks() {
                 first_max = first_max.max(first);
             }
             let offset = offset.map_or("±1 %".to_string(), |o| format!("{o:.1} %"));
+            assert!(
+                lost_all <= most,
+                "{fs} Hz, ±{jitter} bit, {offset}: {lost_all} frames lost"
+            );
             println!(
                 "{:>9.1} {:>8.0}% {:>7} | {:>9}/{LOCKS} {:>13}/{LOCKS} {:>7.2} {:>8.1} | {:>10.2} {:>9}",
                 fs / 1e6,

@@ -105,16 +105,20 @@ pub fn tail_window(ratio: i32) -> u32 {
     (ratio / 4) as u32
 }
 
-/// True when the last [`TAIL_PAIRS`] mid-pair edges of the frame whose start edge
-/// is at `head` (Q16, the channel's own: shared start plus its delay), read with
-/// `ratio` (Q16 samples per bit) on `ring`, lie on average within
-/// [`tail_window`] of where that timing puts them, and their deviations'
-/// mean size within 1.5 times that. `pattern` is the frame's pattern as read
+/// The summed deviation (Q16 samples, signed: later than the timing positive;
+/// [`TAIL_PAIRS`] times their mean) of the last [`TAIL_PAIRS`] mid-pair edges
+/// of the frame whose start edge is at `head` (Q16, the channel's own: shared
+/// start plus its delay), read with `ratio` (Q16 samples per bit) on `ring`,
+/// from where that timing puts them, when their mean lies within
+/// [`tail_window`] and their deviations' mean size within 1.5 times that;
+/// `None` otherwise. The mean is also the settled timing's best phase
+/// measurement (`Timing::advance`): its jitter is about a third of a single
+/// start edge's. `pattern` is the frame's pattern as read
 /// (first bit at bit 124): it says which level comes before each edge; a pair
 /// read with the wrong level measures its edge half a bit early (at its window's
 /// start), an edge beyond its window where the level really changes (up to 32
 /// samples on).
-pub fn tail(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> bool {
+pub fn tail(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> Option<i32> {
     let mut edges = PairEdges::new(head, ratio, FIRST);
     // Where the timing puts pair FIRST's edge (bit boundary 2 FIRST + 1), plus
     // the half sample of the measuring convention, and each later one two bits
@@ -137,8 +141,9 @@ pub fn tail(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> bool {
         bits <<= 2;
     }
     let w = tail_window(ratio);
-    sum.unsigned_abs() <= TAIL_PAIRS.wrapping_mul(w)
-        && spread <= TAIL_PAIRS.wrapping_mul(w.wrapping_add(w / 2))
+    (sum.unsigned_abs() <= TAIL_PAIRS.wrapping_mul(w)
+        && spread <= TAIL_PAIRS.wrapping_mul(w.wrapping_add(w / 2)))
+    .then_some(sum)
 }
 
 /// How far (Q16 samples) each edge of a frame may lie from the rounding the others
@@ -260,7 +265,7 @@ mod tests {
                 let ring = ring_of(pattern(), |k| t0 + k as f64 * ratio);
                 let (head, r) = (measured(t0), q(ratio));
                 assert_eq!(read(&ring, head, r), pattern());
-                assert!(tail(&ring, head, r, pattern()), "{ratio} {t0}");
+                assert!(tail(&ring, head, r, pattern()).is_some(), "{ratio} {t0}");
             }
         }
     }
@@ -290,9 +295,10 @@ mod tests {
                         let at = format!("{ratio} {t0} {shift}");
                         if f64::abs(shift) < 0.2 {
                             assert_eq!(got, sent, "{at}");
-                            assert!(tail(&ring, head, r, got), "{at}");
+                            assert!(tail(&ring, head, r, got).is_some(), "{at}");
                         } else {
-                            let passed = Frame::decode(got).is_ok() && tail(&ring, head, r, got);
+                            let passed =
+                                Frame::decode(got).is_ok() && tail(&ring, head, r, got).is_some();
                             assert!(!passed, "{at}");
                         }
                     }
@@ -315,7 +321,7 @@ mod tests {
             let ring = ring_of(square, |k| 20.5 + k as f64 * 3.2 * (1.0 + rate));
             let (head, r) = (measured(20.5), q(3.2));
             let got = read(&ring, head, r);
-            let passed = Frame::decode(got).is_ok() && tail(&ring, head, r, got);
+            let passed = Frame::decode(got).is_ok() && tail(&ring, head, r, got).is_some();
             assert_eq!(passed, ok, "{rate}");
         }
     }
@@ -327,14 +333,9 @@ mod tests {
         // is wrong, so each edge reads at its window's start. Six of them wrong:
         // deviations of half a bit and more on six of eight edges, out too.
         let ring = ring_of(pattern(), |k| 20.0 + k as f64 * 3.5);
-        assert!(tail(&ring, measured(20.0), q(3.5), pattern()));
-        assert!(!tail(
-            &ring,
-            measured(20.0),
-            q(3.5),
-            pattern() ^ 0xFFFF << 3
-        ));
-        assert!(!tail(&ring, measured(20.0), q(3.5), pattern() ^ 0xFFF << 3));
+        assert!(tail(&ring, measured(20.0), q(3.5), pattern()).is_some());
+        assert!(tail(&ring, measured(20.0), q(3.5), pattern() ^ 0xFFFF << 3).is_none());
+        assert!(tail(&ring, measured(20.0), q(3.5), pattern() ^ 0xFFF << 3).is_none());
     }
 
     #[test]
@@ -412,7 +413,12 @@ mod tests {
             let w = tail_window(r);
             let (bound, wide) = (f64::from(w) / f64::from(r), f64::from(w + w / 2) / f64::from(r));
             if (mean.abs() - bound).abs() > 1e-3 && (spread - wide).abs() > 1e-3 {
-                prop_assert_eq!(got, mean.abs() <= bound && spread <= wide, "{} {}", mean, spread);
+                prop_assert_eq!(got.is_some(), mean.abs() <= bound && spread <= wide, "{} {}", mean, spread);
+            }
+            // The sum it returns is the edge-by-edge one (Q16 samples).
+            if let Some(sum) = got {
+                let exact = mean * f64::from(r) * f64::from(TAIL_PAIRS);
+                prop_assert!((f64::from(sum) - exact).abs() <= 1.0, "{} {}", sum, exact);
             }
         }
     }

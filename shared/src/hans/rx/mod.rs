@@ -52,8 +52,10 @@
 //! 3. **Tracking**: each channel's next start edge is searched ±1.5 bits around
 //!    its prediction (exactly one falling edge lies there on a good line). The
 //!    reference channel's edge, when it just verified, corrects phase and rate
-//!    with an alpha-beta filter (else the upper median of the edges of the
-//!    channels that did: a glitch before the real edge reads early);
+//!    with an alpha-beta filter, blended with the mean of the last 8 mid-pair
+//!    edges its tail confirmation measured (`timing::Timing::tail`; else the
+//!    upper median of the edges of the channels that did: a glitch before the
+//!    real edge reads early);
 //!    for its first [`timing::YOUNG`] frames a lock is instead the least-squares
 //!    line through its start edges and the 61 mid-pair edges (every complement
 //!    pair has one) of each frame its reference channel verified ([`phase`]): a
@@ -738,16 +740,22 @@ impl HansRx {
         // re-read at the phase they show, and the timing moves there
         // (`rephased`).
         let mut confirmed = 0u8;
-        if self.confirmed(reference, start, ref_delay, ratio, ref_pattern)
-            || bits(same & !(1 << reference))
-                .any(|n| self.confirmed(n, start, delay(n), ratio, ref_pattern))
+        // The reference's own tail deviation, when it confirmed the frame itself:
+        // the settled timing's phase measurement (`Timing::advance`).
+        let tail = self.confirmed(reference, start, ref_delay, ratio, ref_pattern);
+        self.timing.tail = tail;
+        if tail.is_some()
+            || bits(same & !(1 << reference)).any(|n| {
+                self.confirmed(n, start, delay(n), ratio, ref_pattern)
+                    .is_some()
+            })
             || self.rephased(ref_pattern)
         {
             confirmed = same;
         }
         for n in bits(differ) {
             if let Some(&p) = patterns.get(n) {
-                if self.confirmed(n, start, delay(n), ratio, p) {
+                if self.confirmed(n, start, delay(n), ratio, p).is_some() {
                     confirmed |= 1 << n;
                 }
             }
@@ -822,7 +830,7 @@ impl HansRx {
         aligned
     }
 
-    /// True when channel `n`'s start edges of this frame (at `start` plus its
+    /// Confirmed when channel `n`'s start edges of this frame (at `start` plus its
     /// `delay`) and of the next one (a frame later by the bit timing the pattern
     /// was read with) both lie within [`confirm_window`] of where that timing puts
     /// them, and the frame's last mid-pair edges, measured with `pattern` (read at
@@ -843,10 +851,18 @@ impl HansRx {
     /// one channel of those that matched the reference suffices for all of them:
     /// they hold its samples at every centre (shifted by whole samples), so edges
     /// where one member's timing puts them vouch for the pattern they share.
-    fn confirmed(&self, n: usize, start: u32, delay: i32, ratio: i32, pattern: u128) -> bool {
-        let Some(ring) = self.rings.get(n) else {
-            return false;
-        };
+    /// Returns `None` when unconfirmed, else the tail's summed deviation
+    /// ([`confirm::tail`]; 0 before the lock has settled, when it is not
+    /// measured): the phase measurement `Timing::advance` blends in.
+    fn confirmed(
+        &self,
+        n: usize,
+        start: u32,
+        delay: i32,
+        ratio: i32,
+        pattern: u128,
+    ) -> Option<i32> {
+        let ring = self.rings.get(n)?;
         let w = confirm_window(ratio);
         let head = start.wrapping_add(delay as u32);
         let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
@@ -854,13 +870,20 @@ impl HansRx {
         // sample after the edge, `ceil(at - w)..=ceil(at + w)`; `first_fall` rounds
         // its bounds down).
         let up = (1 << FRAC) - 1;
-        [head, next].into_iter().all(|at| {
+        let edges = [head, next].into_iter().all(|at| {
             ring.first_fall(
                 at.wrapping_sub(w).wrapping_add(up),
                 at.wrapping_add(w).wrapping_add(up),
             )
             .is_some()
-        }) && (!self.timing.settled() || confirm::tail(ring, head, ratio, pattern))
+        });
+        if !edges {
+            None
+        } else if self.timing.settled() {
+            confirm::tail(ring, head, ratio, pattern)
+        } else {
+            Some(0)
+        }
     }
 
     /// After the reference's frame (read at the timing and its delay as
@@ -923,7 +946,9 @@ impl HansRx {
         );
         let shifted = delay.wrapping_add(d1);
         // A shift of zero would be the reading that failed.
-        let ok = d1 != 0 && again == pattern && self.confirmed(n, start, shifted, ratio, pattern);
+        let ok = d1 != 0
+            && again == pattern
+            && self.confirmed(n, start, shifted, ratio, pattern).is_some();
         if ok {
             self.timing.rephase(d1);
         }
@@ -1172,6 +1197,9 @@ impl HansRx {
                 self.lose(sink);
                 return;
             };
+            // The reference's tail measured the phase at the reference's edge
+            // only.
+            self.timing.tail = None;
             err
         };
         if !self.timing.advance(err) {

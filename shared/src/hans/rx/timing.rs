@@ -16,10 +16,16 @@
 //! least-squares line ([`super::phase`]) through the start edges **and the 61
 //! mid-pair edges of every frame that verified** ([`Timing::refine`]): after two
 //! or three verified frames phase and rate are known to a few hundredths of a
-//! sample. Then the alpha-beta filter takes over at its settled gains, which keep
-//! the precision at about 0.1 sample (no more edges are measured: on the M7 the 61
-//! edges cost ~1 700 instructions a frame and the fit's 64-bit divisions ~320,
-//! which only a young lock pays; `cargo xtask profile "young lock"`).
+//! sample. Then the alpha-beta filter takes over at its settled gains (on the M7
+//! the 61 edges cost ~1 700 instructions a frame and the fit's 64-bit divisions
+//! ~320, which only a young lock pays; `cargo xtask profile "young lock"`). Its
+//! phase measurement is the start edge blended with the mean of the 8 mid-pair
+//! edges that every published frame's tail confirmation measures anyway
+//! ([`super::confirm::tail`], [`Timing::tail`]): on the start edge alone its phase
+//! wandered up to 0.05 bit (0.15 sample at 3x) from the mid-pair edges over a
+//! lock, enough to push a ±25 % jittered tail past its quarter-bit bound; with
+//! the tail the wander is below what 50 frames of tail jitter can resolve
+//! (README "Known limits").
 
 use super::hunt::Found;
 use super::phase::{Correction, Fit, Points};
@@ -47,6 +53,8 @@ pub const YOUNG: i32 = 32;
 /// dozens of frames at 3x, where a ±25 % jittered pair read a bit early passes
 /// every check now and then (a frame never sent, published).
 pub const RECENTRE: i32 = 2;
+// `Timing::advance` weighs the tail's sum as that of 8 edges.
+const _: () = assert!(super::confirm::TAIL_PAIRS == 8);
 /// Bits in a frame as the fixed-point multiplier.
 const BITS: i32 = FRAME_BITS as i32;
 
@@ -70,6 +78,14 @@ pub struct Timing {
     owed: i32,
     /// The least-squares fit of a young lock.
     fit: Fit,
+    /// The summed deviation of the current frame's last
+    /// [`super::confirm::TAIL_PAIRS`] mid-pair edges from this timing, when the
+    /// reference confirmed it on its own ([`super::confirm::tail`]; 0 before the
+    /// lock has settled): read by the next [`Timing::advance`] as a phase
+    /// measurement, unless the receiver clears it (the frame was timed on a
+    /// median of other channels' edges). Every decoded frame sets it before its
+    /// advance; a lock and a coast clear it.
+    pub(super) tail: Option<i32>,
     /// The current frame was re-read at a rounding step ([`Timing::rephase`]):
     /// its mid-pair edges straddle the step, so [`Timing::refine`] does not
     /// take them. Cleared by the next young frame, a lock and a coast.
@@ -89,6 +105,7 @@ impl Timing {
             fits: 0,
             owed: 0,
             fit: Fit::lock(),
+            tail: None,
             rephased: false,
         }
     }
@@ -104,6 +121,7 @@ impl Timing {
     pub fn lock(&mut self, found: Found) {
         self.fits = found.edges;
         self.owed = 0;
+        self.tail = None;
         self.rephased = false;
         self.fit = found.fit;
         self.set(found.start, found.period);
@@ -127,8 +145,9 @@ impl Timing {
     }
 
     /// Moves to the next frame, whose start edge was measured `err` (Q16) after the
-    /// prediction. Returns false when the corrected period is implausible (the lock
-    /// is then worthless).
+    /// prediction, and by [`Timing::tail`] when the frame left one.
+    /// Returns false when the corrected period is implausible (the lock is then
+    /// worthless).
     pub fn advance(&mut self, err: i32) -> bool {
         // Gains of a least-squares line fit over the last k start edges (k capped at
         // FIT_FRAMES): phase 2(2k-1)/(k(k+1)), period 6/(k(k+1)). The search window
@@ -153,6 +172,21 @@ impl Timing {
             self.fit.next_frame();
             let c = self.fit.add(&Points::start_edge(err));
             return self.apply(self.predicted(), c);
+        }
+        // The tail's mean lies 8 to 16 bits before the next start edge, so it
+        // measures the same phase error as `err` (the rate error over those bits
+        // is a few thousandths of a sample), with about a third of its jitter
+        // (σ ~0.065 bit against ~0.17 bit at ±25 % and 3x): weighted by inverse
+        // variance it counts 7/8. On the start edge alone the settled filter's
+        // phase wandered up to 0.05 bit from the mid-pair edges, the margin a
+        // ±25 % tail needs to pass its quarter-bit mean bound (one frame in 64
+        // locks at 37.5 MHz, -0.42 %, seed 20004 of `limits_over_many_locks`:
+        // mean 0.257 bit). Bounded by the tail's window, so a tail that passed by
+        // chance moves the phase a few thousandths of a bit at most.
+        // `tail` is 8 times the mean: (8 err + 7 tail) / 64, rounded down (half
+        // a Q16 unit of bias, 1e-5 sample).
+        if let Some(t) = self.tail {
+            err = err.wrapping_mul(8).wrapping_add(t.wrapping_mul(7)) >> 6;
         }
         self.fits = (self.fits + 1).min(FIT_FRAMES);
         let k = self.fits;
@@ -266,6 +300,7 @@ impl Timing {
         self.fit = Fit::prior(FIT_FRAMES as u32, frames);
         self.fits = YOUNG - RECENTRE;
         self.owed = RECENTRE;
+        self.tail = None;
         self.rephased = false;
     }
 
@@ -339,6 +374,39 @@ mod tests {
             assert!(t.advance(0));
         }
         assert!(!t.young() && t.fits == FIT_FRAMES, "{t:?}");
+    }
+
+    #[test]
+    fn a_settled_lock_weighs_the_tail_seven_eighths() {
+        let settled = |tail| {
+            let mut t = Timing::new(3 << FRAC);
+            t.fits = FIT_FRAMES;
+            t.tail = tail;
+            t
+        };
+        // Start edge on time, the tail's 8 edges a sample late on average: as a
+        // start edge 7/8 sample late alone.
+        let mut blended = settled(Some(8 << FRAC));
+        let mut alone = settled(None);
+        assert!(blended.advance(0) && alone.advance(7 << (FRAC - 3)));
+        assert_eq!((blended.start, blended.period), (alone.start, alone.period));
+        assert_ne!(alone.start, settled(None).predicted());
+        // Start edge a sample early, tail on time: an eighth of it counts.
+        let mut blended = settled(Some(0));
+        let mut alone = settled(None);
+        assert!(blended.advance(-(1 << FRAC)) && alone.advance(-(1 << (FRAC - 3))));
+        assert_eq!((blended.start, blended.period), (alone.start, alone.period));
+        // A young lock's fit takes its mid-pair edges itself (`refine`): the tail
+        // is not counted twice.
+        let young = |tail| {
+            let mut t = Timing::new(3 << FRAC);
+            t.fits = SETTLED;
+            t.tail = tail;
+            t
+        };
+        let (mut with, mut without) = (young(Some(8 << FRAC)), young(None));
+        assert!(with.advance(1 << FRAC) && without.advance(1 << FRAC));
+        assert_eq!((with.start, with.period), (without.start, without.period));
     }
 
     #[test]
