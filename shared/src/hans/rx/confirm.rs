@@ -119,26 +119,14 @@ pub fn tail_window(ratio: i32) -> u32 {
 /// start), an edge beyond its window where the level really changes (up to 32
 /// samples on).
 pub fn tail(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> Option<i32> {
-    let mut edges = PairEdges::new(head, ratio, FIRST);
-    // Where the timing puts pair FIRST's edge (bit boundary 2 FIRST + 1), plus
-    // the half sample of the measuring convention, and each later one two bits
-    // further.
-    let step = (ratio as u32).wrapping_mul(2);
-    let mut at = head
-        .wrapping_add((ratio as u32).wrapping_mul(2 * FIRST + 1))
-        .wrapping_add(HALF);
-    // Pair FIRST's first bit (pattern bit 124 - 2 FIRST) at bit 31, the next
-    // pairs' every two bits below it.
-    let mut bits = (pattern as u32) << (2 * FIRST - 93);
+    let mut edges = TailEdges::new(head, ratio, pattern);
     // Sums of the edges' deviations and of their sizes (Q16 samples; each below
     // 32 samples, so the sums fit).
     let (mut sum, mut spread) = (0i32, 0u32);
     for _ in 0..TAIL_PAIRS {
-        let r = (edges.count_on(ring, bits) << FRAC).wrapping_sub(at) as i32;
+        let r = edges.next(ring);
         sum = sum.wrapping_add(r);
         spread = spread.wrapping_add(r.unsigned_abs());
-        at = at.wrapping_add(step);
-        bits <<= 2;
     }
     let w = tail_window(ratio);
     (sum.unsigned_abs() <= TAIL_PAIRS.wrapping_mul(w)
@@ -178,20 +166,48 @@ pub fn stepped(ring: &Ring, head: u32, ratio: i32, pattern: u128, start: i32, ne
         return false;
     }
     // The tail's deviations as [`tail`] measures them.
-    let mut edges = PairEdges::new(head, ratio, FIRST);
-    let step = (ratio as u32).wrapping_mul(2);
-    let mut at = head
-        .wrapping_add((ratio as u32).wrapping_mul(2 * FIRST + 1))
-        .wrapping_add(HALF);
-    let mut bits = (pattern as u32) << (2 * FIRST - 93);
-    for _ in 0..TAIL_PAIRS {
-        if !on((edges.count_on(ring, bits) << FRAC).wrapping_sub(at) as i32) {
-            return false;
+    let mut edges = TailEdges::new(head, ratio, pattern);
+    (0..TAIL_PAIRS).all(|_| on(edges.next(ring)))
+}
+
+/// The deviations of a frame's last [`TAIL_PAIRS`] mid-pair edges from where the
+/// timing puts them, one per [`TailEdges::next`], as [`tail`] and [`stepped`]
+/// measure them.
+struct TailEdges {
+    edges: PairEdges,
+    /// Where the timing puts the next edge (Q16), plus the half sample of the
+    /// measuring convention.
+    at: u32,
+    /// Two bits (Q16 samples).
+    step: u32,
+    /// The next pair's first bit at bit 31, the later pairs' every two bits below.
+    bits: u32,
+}
+
+impl TailEdges {
+    /// The edges of the frame whose start edge is at `head` (as for [`tail`]).
+    #[inline(always)]
+    fn new(head: u32, ratio: i32, pattern: u128) -> TailEdges {
+        TailEdges {
+            edges: PairEdges::new(head, ratio, FIRST),
+            // Pair FIRST's edge is bit boundary 2 FIRST + 1.
+            at: head
+                .wrapping_add((ratio as u32).wrapping_mul(2 * FIRST + 1))
+                .wrapping_add(HALF),
+            step: (ratio as u32).wrapping_mul(2),
+            // Pair FIRST's first bit is pattern bit 124 - 2 FIRST.
+            bits: (pattern as u32) << (2 * FIRST - 93),
         }
-        at = at.wrapping_add(step);
-        bits <<= 2;
     }
-    true
+
+    /// The next edge's deviation (Q16 samples).
+    #[inline(always)]
+    fn next(&mut self, ring: &Ring) -> i32 {
+        let r = (self.edges.count_on(ring, self.bits) << FRAC).wrapping_sub(self.at) as i32;
+        self.at = self.at.wrapping_add(self.step);
+        self.bits <<= 2;
+        r
+    }
 }
 
 #[cfg(test)]

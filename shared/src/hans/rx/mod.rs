@@ -130,14 +130,15 @@
 //! nothing panics, and the work per word is bounded.
 //!
 //! # Cost (QEMU Cortex-M7, `cargo xtask qemu`, steady state)
-//! About 1 930 instructions per frame for one channel at 3x (2 080 at 4x), 2 910
-//! for vote3 and 3 390 for vote5 / super (5 channels, 3x); as the firmware feeds
-//! it (40 MHz, 64-word chunks) 2 050 in normal mode and 3 520 in super mode, once
-//! a lock has settled (the tail confirmation, [`confirm`], adds 150..230: about 230
-//! in `confirmed` for the reference's 8 last mid-pair edges, the rest the code
-//! around the call; before it 1 780 / 1 870 / 2 690 / 3 170, firmware 1 830 /
-//! 3 290, young lock 5 780): the young lock ([`phase`], its first [`timing::YOUNG`]
-//! frames) costs 5 980 in super mode as the firmware feeds it (bench row "young
+//! About 1 880 instructions per frame for one channel at 3x (2 030 at 4x), 2 850
+//! for vote3 and 3 240 for vote5 / super (5 channels, 3x); as the firmware feeds
+//! it (40 MHz, 64-word chunks) 2 010 in normal mode and 3 360 in super mode, once
+//! a lock has settled (README "Measured figures" has the current rows; the
+//! figures below are the history that led here). The tail confirmation,
+//! [`confirm`], adds 150..230 (about 230 in `confirmed` for the reference's 8
+//! last mid-pair edges, the rest the code around the call; before it 1 780 /
+//! 1 870 / 2 690 / 3 170, firmware 1 830 / 3 290, young lock 5 780). The young
+//! lock ([`phase`], its first [`timing::YOUNG`] frames) costs 5 980 in super mode as the firmware feeds it (bench row "young
 //! lock", frames 4..36; 8 530 before `phase::mid_pairs` was made a register-only
 //! loop of ~28 instructions an edge): ~1 700 measuring the 61 mid-pair edges,
 //! ~320 the fit's 64-bit divisions, ~430 the frame step's and `Timing::advance`'s
