@@ -867,17 +867,9 @@ impl HansRx {
         let w = confirm_window(ratio);
         let head = start.wrapping_add(delay as u32);
         let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
-        // Centred: the low samples an edge within `w` of `at` can give (the first
-        // sample after the edge, `ceil(at - w)..=ceil(at + w)`; `first_fall` rounds
-        // its bounds down).
-        let up = (1 << FRAC) - 1;
-        let edges = [head, next].into_iter().all(|at| {
-            ring.first_fall(
-                at.wrapping_sub(w).wrapping_add(up),
-                at.wrapping_add(w).wrapping_add(up),
-            )
-            .is_some()
-        });
+        let edges = [head, next]
+            .into_iter()
+            .all(|at| start_edge(ring, at, w).is_some());
         if !edges {
             None
         } else if self.timing.settled() {
@@ -922,14 +914,7 @@ impl HansRx {
         let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
         // Each start edge against where the timing puts it, found as `confirmed`
         // finds it.
-        let up = (1 << FRAC) - 1;
-        let edge = |at: u32| {
-            ring.first_fall(
-                at.wrapping_sub(w).wrapping_add(up),
-                at.wrapping_add(w).wrapping_add(up),
-            )
-            .map(|e| diff(e, at))
-        };
+        let edge = |at: u32| start_edge(ring, at, w).map(|e| diff(e, at));
         let (Some(d0), Some(d1)) = (edge(head), edge(next)) else {
             return false;
         };
@@ -1357,6 +1342,19 @@ impl HansRx {
 /// centre reads its neighbour.
 fn confirm_window(ratio: i32) -> u32 {
     (ratio * 3 / 8) as u32
+}
+
+/// The start edge (Q16, as [`Ring::first_fall`] gives it) within `w` of `at` on
+/// `ring`, for [`HansRx::confirmed`] and [`HansRx::rephased`]. Centred: the low
+/// samples an edge within `w` of `at` can give (the first sample after the edge,
+/// `ceil(at - w)..=ceil(at + w)`; `first_fall` rounds its bounds down).
+#[inline(always)]
+fn start_edge(ring: &Ring, at: u32, w: u32) -> Option<u32> {
+    let up = (1 << FRAC) - 1;
+    ring.first_fall(
+        at.wrapping_sub(w).wrapping_add(up),
+        at.wrapping_add(w).wrapping_add(up),
+    )
 }
 
 /// The indices of the set bits of `mask`, lowest first.
