@@ -16,6 +16,8 @@
 //!   its share of the core.
 //! - [`head_port`]: the board's head-side waveform pins and ticks (firmware and host
 //!   pipeline alike).
+//! - [`rs485`]: the RS-485 driver-enable timing check the HIL test runs on captured
+//!   UART TX and DE edges.
 #![cfg_attr(not(test), no_std)]
 #![deny(missing_docs)]
 #![forbid(unsafe_code)]
@@ -25,5 +27,6 @@ pub mod governor;
 pub mod hans;
 pub mod head_port;
 pub mod model;
+pub mod rs485;
 pub mod xy2;
 pub mod xy3;
