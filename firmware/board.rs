@@ -42,8 +42,12 @@
 //!   = an SPI master clocked from PLL2_P 100 MHz with MBR /2; 37.5 MHz (ratio 3) = PLL2_Q
 //!   changed to /8 (75 MHz) and an SPI4/5 master with MBR /2. All exact: the decoder
 //!   gets the exact ratio.
-//! * Backchannel UART (115200 .. 921600 baud): USART kernel 100 MHz, error < 0.01 %
-//!   (921600 with 8x oversampling: 100e6 * 2 / 921600 = 217.01).
+//! * Backchannel UART (115200 .. 921600 baud): USART kernel 100 MHz. embassy-stm32 0.6
+//!   keeps 16x oversampling whenever BRR fits (RM0433 "USART baud rate generation",
+//!   beside §53.5.20 that the driver cites), so 115200 is
+//!   100e6 / 868 = 115 207 baud (+0.006 %) and 921600 is 100e6 / 109 = 917 431 baud
+//!   (-0.45 %): well inside an 8N1 link's ~±2 % between both ends, and measured on
+//!   the board by the HIL test `backchannel_de_timing` (it accepts up to 0.5 %).
 //!
 //! PLL3 stays off (nothing needs it yet; PLL3_Q /10 of a 480 MHz VCO would give USB's
 //! 48 MHz if a USB console is added).
