@@ -56,6 +56,36 @@ enum Decoder {
     Hans,
 }
 
+/// How the head's status feeds the engine's status watchdog
+/// (`Bridge::status_seen`).
+///
+/// An XY2 head with a STATUS level reports only changes (`status::status_level_in`
+/// publishes the debounced level when it changes), but the line itself is always
+/// there (an open RS-485 receiver reads its fail-safe level, which the debouncer
+/// reports as a level): once the first level is in, the head's status is that
+/// level until the next change, so it counts as seen every batch.
+///
+/// "The first level is in" is not the engine's `Supervisor::status_unknown`
+/// (the gate's wait for a head status): that is the watchdog's view and comes
+/// back on a `STATUS_LOST` (two batches' heartbeats `failsafe.status_timeout_us`
+/// apart, 1 ms at least: a stalled loop), and it is never set with the watchdog
+/// off. Gating the heartbeat on it would latch `STATUS_LOST`, and the gate off,
+/// until the healthy head's level happened to change. What the level tells stays
+/// true once in; the engine's own flag keeps the gate off until the first one
+/// (and after a loss until the next batch's heartbeat).
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum StatusFeed {
+    /// Each status a status task publishes counts as seen once (XY3-100
+    /// backchannel packets and HANS-100 STATUS frames keep coming; the XY2 status
+    /// word feeds the watchdog itself, `head_word`).
+    Published,
+    /// An XY2 STATUS level whose start-up level has not been debounced yet: the
+    /// head's state is not known.
+    LevelAwaited,
+    /// An XY2 STATUS level that is in: seen every batch.
+    Level,
+}
+
 /// The XY3-100 receiver and where its byte count stands against the input task's.
 struct Xy3Decoder {
     rx: xy3::rx::Receiver,
@@ -148,14 +178,8 @@ pub(super) struct Core {
     pub(super) bridge: Bridge,
     decoder: Decoder,
     head_status: AnonReceiver<'static, CriticalSectionRawMutex, HeadStatus, 2>,
-    /// An XY2 head with a STATUS level reports only changes; the line itself is
-    /// always there (an open RS-485 receiver reads its fail-safe level, which the
-    /// debouncer reports as a level), so the status counts as seen every batch
-    /// once the first level is in (before it the head's state is not known, and
-    /// the laser gate waits for it).
-    level_status: bool,
-    /// A head status has been taken.
-    status_known: bool,
+    /// How the head's status feeds the watchdog.
+    status_feed: StatusFeed,
     ctrl_level: xy2::StatusLevel,
     /// XY3-100 controller: the bridge's backchannel packets go out through BACK_TX.
     back_ctrl: bool,
@@ -193,8 +217,11 @@ impl Core {
             bridge,
             decoder,
             head_status: HEAD_STATUS.anon_receiver(),
-            level_status: head == Head::Xy2 && config.head.xy2.status == StatusForm::Level,
-            status_known: false,
+            status_feed: if head == Head::Xy2 && config.head.xy2.status == StatusForm::Level {
+                StatusFeed::LevelAwaited
+            } else {
+                StatusFeed::Published
+            },
             ctrl_level: xy2::StatusLevel {
                 polarity: config.controller.xy2.polarity,
             },
@@ -243,13 +270,16 @@ impl Core {
     }
 
     /// Takes the head status the status tasks published (XY2 level, XY3
-    /// backchannel, HANS STATUS) at bridge time `now_ns`.
+    /// backchannel, HANS STATUS) at bridge time `now_ns`; an XY2 STATUS level that
+    /// is in counts as seen every call ([`StatusFeed`]).
     pub(super) fn take_head_status(&mut self, now_ns: u64) {
         if let Some(s) = self.head_status.try_changed() {
             *self.bridge.head_status_mut() = s;
             self.bridge.status_seen(now_ns);
-            self.status_known = true;
-        } else if self.level_status && self.status_known {
+            if self.status_feed == StatusFeed::LevelAwaited {
+                self.status_feed = StatusFeed::Level;
+            }
+        } else if self.status_feed == StatusFeed::Level {
             self.bridge.status_seen(now_ns);
         }
     }

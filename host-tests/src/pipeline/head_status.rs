@@ -42,7 +42,8 @@ pub struct HansStatusHalf {
     /// When it was decoded (the time of the chunk that completed it), ns.
     pub t_ns: u64,
     /// It went to the decoder because the lock could not coast yet (the firmware's
-    /// `HANS_STATUS_CONTIGUOUS`), not by the every-n rule alone.
+    /// `HANS_STATUS_CONTIGUOUS`), not by the every-n rule alone
+    /// (`follow::status_due`).
     pub asked: bool,
     /// The frames it published (applied to the head's status), in order.
     pub frames: Vec<hans::Frame>,
@@ -145,7 +146,7 @@ impl HansStatus {
             &mut sink,
         );
         self.rx.push(&[&self.words], &mut sink);
-        let asked = self.contiguous && !self.number.is_multiple_of(self.every);
+        let asked = self.contiguous && !follow::status_due(self.number, self.every);
         self.contiguous = !self.rx.coasts();
         let seen = frames.len() as u32;
         self.decoded.push(HansStatusHalf {

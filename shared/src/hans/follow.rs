@@ -158,13 +158,20 @@ pub const fn status_every(hans_controller: bool) -> u32 {
 }
 
 /// Whether the head's STATUS input passes half number `half` (counted from 1,
-/// wrapping) on to the decoder: every `every`-th ([`status_every`]; 0 reads as
-/// 1), and every one while `contiguous`, which the decoder sets after each half
-/// to `!`[`HansRx::coasts`]: a young lock is dropped at a skip, so an
-/// acquisition (about two halves) must see contiguous halves or it would hunt
-/// again on every one.
+/// wrapping) on to the decoder: every `every`-th ([`status_due`]), and every one
+/// while `contiguous`, which the decoder sets after each half to
+/// `!`[`HansRx::coasts`]: a young lock is dropped at a skip, so an acquisition
+/// (about two halves) must see contiguous halves or it would hunt again on every
+/// one.
 pub fn status_passes(half: u32, every: u32, contiguous: bool) -> bool {
-    contiguous || half.is_multiple_of(every.max(1))
+    contiguous || status_due(half, every)
+}
+
+/// Whether half number `half` is one of every `every`-th ([`status_every`]; 0
+/// reads as 1): the halves [`status_passes`] passes on whatever the lock does.
+/// The others pass only while the decoder asks for contiguous halves.
+pub fn status_due(half: u32, every: u32) -> bool {
+    half.is_multiple_of(every.max(1))
 }
 
 #[cfg(test)]
@@ -297,6 +304,17 @@ mod tests {
         // 0 is read as 1 (never a division by zero); the count wraps.
         assert_eq!(passed(0, false), [true; 6]);
         assert!(status_passes(0, 2, false) && !status_passes(u32::MAX, 2, false));
+        // The every-n part alone is `status_due`, whatever `contiguous` says.
+        for (every, contiguous) in [(1, false), (2, false), (2, true), (0, true)] {
+            for half in [0, 1, 2, 3, 4, u32::MAX] {
+                assert_eq!(
+                    status_passes(half, every, contiguous),
+                    contiguous || status_due(half, every),
+                    "{half} {every} {contiguous}"
+                );
+            }
+        }
+        assert!(status_due(4, 2) && !status_due(3, 2) && status_due(3, 0));
     }
 
     /// The rule as the firmware runs it: halves pass while the receiver's lock

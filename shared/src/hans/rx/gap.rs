@@ -86,7 +86,6 @@
 
 use super::channel::DELAY_MAX;
 use super::ring::{diff, FRAC, RING_WORDS};
-use super::timing::{RECENTRE, YOUNG};
 use super::{HansRx, RxEvent};
 
 /// Most frame periods a settled lock predicts without a measured start edge
@@ -184,9 +183,9 @@ impl HansRx {
         }
         // Frames predicted without a measured edge so far: those of a coast whose
         // end has not been measured past, and a decoded frame's successor.
-        // (A young lock that reached that frame count on its own reads the last
-        // coast's count too: only ever more cautious.)
-        let mut before = if t.fits == YOUNG - RECENTRE {
+        // (`Timing::at_recentre_start`: a young lock at that frame count reads the
+        // last coast's count too, only ever more cautious.)
+        let mut before = if t.at_recentre_start() {
             u64::from(self.gaps.coasted)
         } else {
             0

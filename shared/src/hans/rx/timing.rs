@@ -32,7 +32,8 @@ use super::phase::{Correction, Fit, Points};
 use super::ring::{diff, FRAC};
 use crate::hans::FRAME_BITS;
 
-/// Frames after which the alpha-beta gains stop shrinking.
+/// Start edges whose least-squares line fit the settled alpha-beta filter's gains
+/// are those of, and the start edges [`Timing::recentre`]'s prior stands for.
 const FIT_FRAMES: i32 = 128;
 /// Start edges a lock must have measured before its frames are published: the
 /// first edges set phase and rate with large gains, so a rate measured over one
@@ -58,6 +59,36 @@ const _: () = assert!(super::confirm::TAIL_PAIRS == 8);
 /// Bits in a frame as the fixed-point multiplier.
 const BITS: i32 = FRAME_BITS as i32;
 
+/// Where a lock is in its life, and so what times it: the least-squares line of
+/// [`super::phase`] (young or re-centring, with its fit) or the alpha-beta filter
+/// (settled, no fit). One state, so that a settled lock holding a fit, or a
+/// re-centring that is not young, cannot be written down.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Stage {
+    /// A new lock's young fit over its first `frames` frames (the hunt's 2 or 3
+    /// start edges, then one a frame whether it verified or not; 0 before the
+    /// first lock). At [`YOUNG`] the filter takes over ([`Stage::Settled`]).
+    Young {
+        /// Frames measured since the lock (below [`YOUNG`]).
+        frames: i32,
+        /// The fit; its line is the timing.
+        fit: Fit,
+    },
+    /// The young fit again after a coast ([`Timing::recentre`]) until `owed`
+    /// more verified frames (1 to [`RECENTRE`]) have re-measured the phase; frames
+    /// that fail do not count. The timing coasts and counts as settled meanwhile
+    /// (the rate is known): it is the young fit's last `owed` frames.
+    Recentre {
+        /// Verified frames still to come.
+        owed: i32,
+        /// The fit, [`Fit::prior`] at the coast; its line is the timing.
+        fit: Fit,
+    },
+    /// The alpha-beta filter at its settled gains (those of a line fit over
+    /// [`FIT_FRAMES`] start edges).
+    Settled,
+}
+
 /// Shared clock recovery.
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
 pub struct Timing {
@@ -71,13 +102,8 @@ pub struct Timing {
     pub period: i32,
     /// Start edge of the current frame (Q16 position, see [`super::ring`]).
     pub start: u32,
-    /// Measurements in the current lock (selects the gains).
-    pub(super) fits: i32,
-    /// Verified frames a re-centring after a coast still waits for ([`RECENTRE`]
-    /// at the coast): until then `fits` moves on only with them.
-    owed: i32,
-    /// The least-squares fit of a young lock.
-    fit: Fit,
+    /// Young fit, re-centring or settled filter.
+    stage: Stage,
     /// The summed deviation of the current frame's last
     /// [`super::confirm::TAIL_PAIRS`] mid-pair edges from this timing, when the
     /// reference confirmed it on its own ([`super::confirm::tail`]; 0 before the
@@ -102,9 +128,10 @@ impl Timing {
             ratio: ratio_q16,
             period: ratio_q16.saturating_mul(BITS),
             start: 0,
-            fits: 0,
-            owed: 0,
-            fit: Fit::lock(),
+            stage: Stage::Young {
+                frames: 0,
+                fit: Fit::lock(),
+            },
             tail: None,
             rephased: false,
         }
@@ -119,11 +146,12 @@ impl Timing {
     /// Starts tracking on the hunt's line ([`super::hunt`]): its start edges and
     /// mid-pair edges are the young lock's first points.
     pub fn lock(&mut self, found: Found) {
-        self.fits = found.edges;
-        self.owed = 0;
+        self.stage = Stage::Young {
+            frames: found.edges,
+            fit: found.fit,
+        };
         self.tail = None;
         self.rephased = false;
-        self.fit = found.fit;
         self.set(found.start, found.period);
     }
 
@@ -149,10 +177,8 @@ impl Timing {
     /// Returns false when the corrected period is implausible (the lock is then
     /// worthless).
     pub fn advance(&mut self, err: i32) -> bool {
-        // Gains of a least-squares line fit over the last k start edges (k capped at
-        // FIT_FRAMES): phase 2(2k-1)/(k(k+1)), period 6/(k(k+1)). The search window
-        // bounds the error to about ±2 bits (< 2^20 in Q16), so the products stay far
-        // inside i32 and the divisions are single instructions on the M7.
+        // The search window bounds the error to about ±2 bits (< 2^20 in Q16), so
+        // the products below stay far inside i32.
         let mut err = err.clamp(-(1 << 21), 1 << 21);
         // A settled lock predicts a good line's edge within its jitter plus half a
         // sample; an edge half a bit or more off is a false (noise) or a missing
@@ -162,17 +188,31 @@ impl Timing {
         if self.settled() && err.unsigned_abs() > (self.ratio / 2).unsigned_abs() {
             err = 0;
         }
-        if self.young() {
-            // A re-centring timing stays young until its verified frames have
-            // re-measured the phase ([`RECENTRE`]).
-            if self.owed == 0 {
-                self.count_young();
+        let c = match &mut self.stage {
+            Stage::Young { frames, fit } => {
+                fit.next_frame();
+                let c = fit.add(&Points::start_edge(err));
+                *frames += 1;
+                if *frames >= YOUNG {
+                    self.stage = Stage::Settled;
+                }
+                c
             }
-            self.rephased = false;
-            self.fit.next_frame();
-            let c = self.fit.add(&Points::start_edge(err));
-            return self.apply(self.predicted(), c);
-        }
+            // A re-centring timing stays young until its verified frames have
+            // re-measured the phase ([`RECENTRE`]): the frame count does not move.
+            Stage::Recentre { fit, .. } => {
+                fit.next_frame();
+                fit.add(&Points::start_edge(err))
+            }
+            Stage::Settled => return self.filter(err),
+        };
+        self.rephased = false;
+        self.apply(self.predicted(), c)
+    }
+
+    /// [`Timing::advance`] of a settled lock: the alpha-beta filter.
+    #[inline(always)]
+    fn filter(&mut self, mut err: i32) -> bool {
         // The tail's mean lies 8 to 16 bits before the next start edge, so it
         // measures the same phase error as `err` (the rate error over those bits
         // is a few thousandths of a sample), with about a third of its jitter
@@ -188,14 +228,16 @@ impl Timing {
         if let Some(t) = self.tail {
             err = err.wrapping_mul(8).wrapping_add(t.wrapping_mul(7)) >> 6;
         }
-        self.fits = (self.fits + 1).min(FIT_FRAMES);
-        let k = self.fits;
+        // Gains of a least-squares line fit over the last k start edges: phase
+        // 2(2k-1)/(k(k+1)), period 6/(k(k+1)), at k = FIT_FRAMES. `err` is within
+        // ±2^21 (`advance`), so the products stay inside i32.
+        let k = FIT_FRAMES;
         let start = self
             .predicted()
             .wrapping_add((err * 2 * (2 * k - 1) / (k * (k + 1))) as u32);
         let period = self.period.saturating_add(err * 6 / (k * (k + 1)));
         self.set(start, period);
-        self.period_ok(period)
+        period_ok(self.bounds, period)
     }
 
     /// Moves the current frame's start edge, and so every later prediction, by
@@ -214,20 +256,15 @@ impl Timing {
     }
 
     /// One more verified frame has measured the phase: counted by a re-centring
-    /// after a coast ([`RECENTRE`]).
-    fn remeasured(&mut self) {
-        if self.owed > 0 {
-            self.owed -= 1;
-            self.count_young();
-        }
-    }
-
-    /// Counts one more frame of the young fit; at [`YOUNG`] the alpha-beta filter
+    /// after a coast ([`RECENTRE`]); after the last one the alpha-beta filter
     /// takes over at its settled gains from the fitted line.
-    fn count_young(&mut self) {
-        self.fits += 1;
-        if self.fits >= YOUNG {
-            self.fits = FIT_FRAMES;
+    fn remeasured(&mut self) {
+        if let Stage::Recentre { owed, .. } = &mut self.stage {
+            if *owed > 1 {
+                *owed -= 1;
+            } else {
+                self.stage = Stage::Settled;
+            }
         }
     }
 
@@ -236,18 +273,13 @@ impl Timing {
     fn apply(&mut self, start: u32, c: Correction) -> bool {
         let period = self.period.saturating_add(c.period);
         self.set(start.wrapping_add(c.start as u32), period);
-        self.period_ok(period)
+        period_ok(self.bounds, period)
     }
 
-    /// True when `period` lies within the bounds the timing accepts.
-    #[inline(always)]
-    fn period_ok(&self, period: i32) -> bool {
-        (self.bounds.0..=self.bounds.1).contains(&period)
-    }
-
-    /// True while the timing is the least-squares line of [`super::phase`].
+    /// True while the timing is the least-squares line of [`super::phase`] (a
+    /// young lock, or one re-centring after a coast).
     pub fn young(&self) -> bool {
-        self.fits < YOUNG
+        !matches!(self.stage, Stage::Settled)
     }
 
     /// Adds the edges `p` measured on the current frame (against this timing plus
@@ -261,14 +293,16 @@ impl Timing {
         if self.rephased {
             return;
         }
-        let mut fit = self.fit;
-        let c = fit.add(p);
+        let (Stage::Young { fit, .. } | Stage::Recentre { fit, .. }) = &mut self.stage else {
+            return;
+        };
+        let mut next = *fit;
+        let c = next.add(p);
         let period = self.period.saturating_add(c.period);
-        if self.young()
-            && c.start.unsigned_abs() < (self.ratio / 2).unsigned_abs()
-            && self.period_ok(period)
+        if c.start.unsigned_abs() < (self.ratio / 2).unsigned_abs()
+            && period_ok(self.bounds, period)
         {
-            self.fit = fit;
+            *fit = next;
             self.apply(self.start, c);
             self.remeasured();
         }
@@ -297,9 +331,10 @@ impl Timing {
     /// that fail meanwhile are bounded by the failure counts as ever (channels
     /// realign, the lock is lost).
     pub fn recentre(&mut self, frames: u32) {
-        self.fit = Fit::prior(FIT_FRAMES as u32, frames);
-        self.fits = YOUNG - RECENTRE;
-        self.owed = RECENTRE;
+        self.stage = Stage::Recentre {
+            owed: RECENTRE,
+            fit: Fit::prior(FIT_FRAMES as u32, frames),
+        };
         self.tail = None;
         self.rephased = false;
     }
@@ -308,7 +343,10 @@ impl Timing {
     /// alpha-beta filter has taken over, or the young fit is in its last
     /// [`RECENTRE`] frames (which also re-centre a coast).
     pub fn coasts(&self) -> bool {
-        self.fits >= YOUNG - RECENTRE
+        match self.stage {
+            Stage::Young { frames, .. } => frames >= YOUNG - RECENTRE,
+            Stage::Recentre { .. } | Stage::Settled => true,
+        }
     }
 
     /// True after a coast until the first verified frame has re-measured the
@@ -318,18 +356,40 @@ impl Timing {
     /// after a 2-half coast at 50 MHz / -1 % in super mode did), so it must not be
     /// published.
     pub fn recentring(&self) -> bool {
-        self.owed == RECENTRE
+        matches!(self.stage, Stage::Recentre { owed: RECENTRE, .. })
+    }
+
+    /// True at the frame count a re-centring starts from ([`YOUNG`] -
+    /// [`RECENTRE`]): a re-centring before its first verified frame
+    /// ([`Timing::recentring`]), or a new lock's young fit that has counted that
+    /// many frames itself. `HansRx::coast` then adds the last coast's frames to
+    /// those it predicts (for the young fit a stale count: only more cautious).
+    pub(super) fn at_recentre_start(&self) -> bool {
+        match self.stage {
+            Stage::Young { frames, .. } => frames == YOUNG - RECENTRE,
+            Stage::Recentre { owed, .. } => owed == RECENTRE,
+            Stage::Settled => false,
+        }
     }
 
     /// True once the lock has measured [`SETTLED`] start edges.
     pub fn settled(&self) -> bool {
-        self.fits >= SETTLED
+        match self.stage {
+            Stage::Young { frames, .. } => frames >= SETTLED,
+            Stage::Recentre { .. } | Stage::Settled => true,
+        }
     }
 
     /// Offset of position `p` from the current start edge.
     pub fn since_start(&self, p: u32) -> i32 {
         diff(p, self.start)
     }
+}
+
+/// True when `period` lies within `bounds` (the timing's).
+#[inline(always)]
+fn period_ok(bounds: (i32, i32), period: i32) -> bool {
+    (bounds.0..=bounds.1).contains(&period)
 }
 
 /// `v` saturated to `i32`.
@@ -350,7 +410,7 @@ mod tests {
     /// A settled lock at 3 samples a bit that has just coasted across 68 frames.
     fn coasted() -> Timing {
         let mut t = Timing::new(3 << FRAC);
-        t.fits = FIT_FRAMES;
+        t.stage = Stage::Settled;
         t.recentre(68);
         t
     }
@@ -373,14 +433,14 @@ mod tests {
             t.refine(&Points::start_edge(0));
             assert!(t.advance(0));
         }
-        assert!(!t.young() && t.fits == FIT_FRAMES, "{t:?}");
+        assert!(!t.young() && t.stage == Stage::Settled, "{t:?}");
     }
 
     #[test]
     fn a_settled_lock_weighs_the_tail_seven_eighths() {
         let settled = |tail| {
             let mut t = Timing::new(3 << FRAC);
-            t.fits = FIT_FRAMES;
+            t.stage = Stage::Settled;
             t.tail = tail;
             t
         };
@@ -400,7 +460,10 @@ mod tests {
         // is not counted twice.
         let young = |tail| {
             let mut t = Timing::new(3 << FRAC);
-            t.fits = SETTLED;
+            t.stage = Stage::Young {
+                frames: SETTLED,
+                fit: Fit::lock(),
+            };
             t.tail = tail;
             t
         };
@@ -425,6 +488,6 @@ mod tests {
             assert!(t.young(), "{t:?}");
             assert!(t.advance(0));
         }
-        assert!(!t.young() && t.fits == FIT_FRAMES, "{t:?}");
+        assert!(!t.young() && t.stage == Stage::Settled, "{t:?}");
     }
 }
