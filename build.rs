@@ -6,12 +6,16 @@
 //!    `Config::validate()` -- the same types and checks the host tools and tests use --
 //!    and write it postcard-encoded to `OUT_DIR/bridge_config.bin`, which
 //!    `firmware/config.rs` includes and decodes at boot. A file that does not parse or
-//!    validate stops the build with a message naming the key.
+//!    validate stops the build with a message naming the key. Its two protocols also
+//!    go to `OUT_DIR/bridge_roles.rs` as a `Roles` constant (`config::BAKED_ROLES`):
+//!    the bridge loops pick their receiver and encoder by it, so the compiler leaves
+//!    the other roles' receivers and encoders out of the image (and out of ITCM;
+//!    README "Memory placement").
 //! 2. Put `memory.x` on the linker path and add the Cortex-M link scripts.
 
 use std::{env, fs, path::PathBuf, process};
 
-use shared::bridge::Config;
+use shared::bridge::{Config, Protocol};
 
 /// Environment variable naming another configuration file (relative to the package
 /// root, or absolute).
@@ -70,6 +74,20 @@ fn bake_config(out: &std::path::Path) {
     let bytes = postcard::to_stdvec(&config)
         .unwrap_or_else(|e| fail(&format!("cannot encode the bridge configuration: {e}")));
     fs::write(out.join("bridge_config.bin"), bytes).expect("write OUT_DIR/bridge_config.bin");
+
+    // The same roles `config::Roles::of` finds in the decoded bytes, as an expression
+    // `firmware/config.rs` includes.
+    let variant = |p: Protocol| match p {
+        Protocol::Xy2 => "Xy2",
+        Protocol::Xy3 => "Xy3",
+        Protocol::Hans => "Hans",
+    };
+    let roles = format!(
+        "Roles {{ controller: Controller::{}, head: Head::{} }}\n",
+        variant(config.controller.protocol),
+        variant(config.head.protocol)
+    );
+    fs::write(out.join("bridge_roles.rs"), roles).expect("write OUT_DIR/bridge_roles.rs");
 }
 
 /// Stops the build. Cargo prints a failed build script's stderr.

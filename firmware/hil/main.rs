@@ -1786,10 +1786,11 @@ mod tests {
 
     /// Hot code in ITCM (no jumpers; firmware/tcm.rs, `memory.x`). `__pre_init`
     /// copied `.itcm` from flash before `main`: the running image must equal its load
-    /// image byte for byte, `HansRx::new` (a `shared::hans::rx` function, which the
-    /// linker script puts there) must have its address in `.itcm`, not in flash, and
-    /// calls through that address must run: a valid set-up is accepted, a sample rate
-    /// outside 3..4x the bit rate refused.
+    /// image byte for byte, `hans::Frame::decode` (a per-frame `shared::hans::frame`
+    /// function, which the linker script puts there) must have its address in
+    /// `.itcm`, not in flash, and calls through that address must run: a frame's
+    /// pattern decodes to the frame, the pattern with one bit flipped is refused.
+    /// `HansRx::new`, a constructor, is kept in flash as cold code (`.flash_cold`).
     #[test]
     fn itcm_holds_the_hot_code(_board: Board) {
         let itcm = xy_bridge::tcm::itcm();
@@ -1797,14 +1798,20 @@ mod tests {
         let (run, load) = xy_bridge::tcm::itcm_load_image();
         let differ = run.iter().zip(load).filter(|(a, b)| a != b).count();
         assert_eq!(differ, 0, "ITCM bytes that differ from the flash image");
-        let new: fn(u32, HansMode) -> Result<HansRx, _> = HansRx::new;
-        let addr = new as usize & !1;
+        let decode: fn(u128) -> Result<Frame, _> = Frame::decode;
+        let addr = decode as usize & !1;
         assert!(
             itcm.contains(&addr),
-            "HansRx::new at {:#x}, not in ITCM",
+            "hans::Frame::decode at {:#x}, not in ITCM",
             addr
         );
-        assert!(new(HANS_FS_HZ, HansMode::Normal { channel: 1 }).is_ok());
-        assert!(new(1_000_000, HansMode::Normal { channel: 1 }).is_err());
+        let frame = Frame::new(0x1_2345, 0xF_EDCB, 0x5_A5A5).unwrap();
+        assert_eq!(decode(frame.encode()), Ok(frame));
+        assert!(decode(frame.encode() ^ 1 << 60).is_err());
+        let new: fn(u32, HansMode) -> Result<HansRx, _> = HansRx::new;
+        assert!(
+            !itcm.contains(&(new as usize & !1)),
+            "HansRx::new (cold) in ITCM"
+        );
     }
 }

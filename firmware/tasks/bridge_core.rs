@@ -20,7 +20,7 @@ use crate::channels::{
     BRIDGE_SNAPSHOT, CTRL_STATUS_OK, CTRL_STATUS_WORD, HEAD_BACK_RATE, HEAD_STATUS, LINK_RUNNING,
     RAW_INPUT, SNAPSHOT_WANTED, STATS, XY2_HALF, XY3_HALF, XY3_INPUT, XY3_LINES, XY3_RESYNC,
 };
-use crate::config::{Controller, Head};
+use crate::config::{Controller, Head, BAKED_ROLES};
 
 /// Gate-on history mask: the output computed now and the two before it must all
 /// have had the gate on. Both loops write two steps ahead of what the head is
@@ -200,6 +200,11 @@ impl Core {
         // Slaved timing: `Config::validate` (inside) refuses it for a HANS-100
         // head, whose line has no room for a frame more than the input's.
         let bridge = Bridge::new(config).map_err(|_| "configuration refused")?;
+        // Only the baked controller's receiver is built: `controller` comes from the
+        // same file, and with it known here the other receivers are never linked.
+        if controller != BAKED_ROLES.controller {
+            return Err("controller protocol is not the baked one");
+        }
         let decoder = match controller {
             Controller::Xy2 => {
                 let link = xy2::LinkConfig {
@@ -240,8 +245,11 @@ impl Core {
     /// samples, XY3-100 X bytes; halves back to back) and the units drained in all,
     /// for `shared::bridge::pacing::batch_slot`.
     pub(super) fn take_input(&mut self, sink: &mut impl FnMut(u32, u32, LineEvent)) {
+        // The guards are constants (`Core::new` builds only the baked receiver): they
+        // let the compiler drop the other receivers' arms, and their code.
+        let baked = BAKED_ROLES.controller;
         match &mut self.decoder {
-            Decoder::Xy2(rx) => {
+            Decoder::Xy2(rx) if baked == Controller::Xy2 => {
                 let halves = RAW_INPUT.len();
                 let units = (halves * XY2_HALF) as u32;
                 for h in 0..halves {
@@ -254,7 +262,7 @@ impl Core {
                     });
                 }
             }
-            Decoder::Xy3(rx) => {
+            Decoder::Xy3(rx) if baked == Controller::Xy3 => {
                 let halves = XY3_INPUT.len();
                 let units = (halves * XY3_HALF) as u32;
                 for h in 0..halves {
@@ -265,7 +273,9 @@ impl Core {
                     rx.feed(&raw, &mut |at, le| sink(base + at, units, le));
                 }
             }
-            Decoder::Hans => super::hans_in::take_events(sink),
+            Decoder::Hans if baked == Controller::Hans => super::hans_in::take_events(sink),
+            // Not built in this image (`Core::new`).
+            Decoder::Xy2(_) | Decoder::Xy3(_) | Decoder::Hans => {}
         }
     }
 

@@ -9,7 +9,7 @@ use shared::head_port::{self, PAIR_BITS, XY3_PINS};
 use shared::model::ForwardFrame;
 use shared::{xy2, xy3};
 
-use crate::config::Head;
+use crate::config::{Head, BAKED_ROLES};
 
 /// Idle BSRR word: every output low (reset half), except XY3's SYNC, which idles high
 /// (`layouts.md` §4; XY2's SYNC idles low like every other line). It pre-fills the
@@ -34,8 +34,11 @@ impl Encoder {
     pub(super) fn new(config: &Config) -> Result<Encoder, &'static str> {
         let rate = config.output.frame_rate_hz;
         let z = config.z.source != ZSource::None;
+        // Only the baked head's transmitter is built (as the controller's receiver,
+        // `bridge_core::Core::new`): the other one is then never linked.
+        let baked = BAKED_ROLES.head;
         match config.head.protocol {
-            Protocol::Xy2 => {
+            Protocol::Xy2 if baked == Head::Xy2 => {
                 let h = config.head.xy2;
                 let ticks = (head_port::XY2_TICK_HZ / rate.max(1)) as usize;
                 let pins = head_port::xy2_pins(z);
@@ -53,7 +56,7 @@ impl Encoder {
                     })
                     .map_err(|_| "XY2-100 transmitter refused the frame rate")
             }
-            Protocol::Xy3 => {
+            Protocol::Xy3 if baked == Head::Xy3 => {
                 let size = config.head.xy3.frame_size;
                 // Z, U and W each only while it has a value to carry
                 // (`Config::xy3_head_lines`).
@@ -68,6 +71,7 @@ impl Encoder {
                     .map_err(|_| "XY3-100 transmitter configuration refused")
             }
             Protocol::Hans => Err("HANS-100 head is not a waveform output"),
+            Protocol::Xy2 | Protocol::Xy3 => Err("head protocol is not the baked one"),
         }
     }
 
@@ -84,6 +88,18 @@ impl Encoder {
     /// Encodes `frame` into `slot`, or idles the slot for `None` and for a frame the
     /// head cannot take (see [`HeadTx::encode`]). Returns whether a frame was written.
     pub(super) fn encode(&self, frame: Option<&ForwardFrame>, slot: &mut [u32]) -> bool {
-        self.0.encode(frame, slot)
+        // A constant (`new` builds only the baked head's transmitter): the other
+        // transmitter's encoder is dropped. Never false in practice; it would idle
+        // the slot, as `encode` does with a frame the head cannot take.
+        let baked = match &self.0 {
+            HeadTx::Xy2 { .. } => BAKED_ROLES.head == Head::Xy2,
+            HeadTx::Xy3 { .. } => BAKED_ROLES.head == Head::Xy3,
+        };
+        if baked {
+            self.0.encode(frame, slot)
+        } else {
+            self.0.idle(slot);
+            false
+        }
     }
 }

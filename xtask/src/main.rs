@@ -166,8 +166,8 @@ fn test_all() -> Result {
     let hil = newest_hil_elf()?;
     let tcm = placement::check(&hil, &root().join("memory.x"))?;
     println!(
-        "hil: ITCM {} bytes ({} hot functions), DTCM {} bytes",
-        tcm.itcm, tcm.itcm_functions, tcm.dtcm
+        "hil: ITCM {} bytes ({} hot functions; {} cold ones in flash), DTCM {} bytes",
+        tcm.itcm, tcm.itcm_functions, tcm.cold_functions, tcm.dtcm
     );
     qemu::run()?;
     fuzz::run()?;
@@ -200,8 +200,16 @@ fn firmware_size() -> Result {
     // Hot code in ITCM, hot state in DTCM, as memory.x asks (fails otherwise).
     let tcm = placement::check(&elf, &root().join("memory.x"))?;
     println!(
-        "  ITCM: {} of {} KiB hot code ({} functions); DTCM: {} of {} KiB hot state ({} statics)",
-        tcm.itcm, ITCM_KIB, tcm.itcm_functions, tcm.dtcm, DTCM_KIB, tcm.dtcm_statics
+        "  ITCM: {} of {} KiB hot code ({} functions; {} cold ones, {} bytes, in flash); \
+         DTCM: {} of {} KiB hot state ({} statics)",
+        tcm.itcm,
+        ITCM_KIB,
+        tcm.itcm_functions,
+        tcm.cold_functions,
+        tcm.cold_bytes,
+        tcm.dtcm,
+        DTCM_KIB,
+        tcm.dtcm_statics
     );
     if size.flash > FLASH_BUDGET {
         return Err(format!(

@@ -5,10 +5,12 @@
 //! The input-section patterns are read from `memory.x` itself (the `.itcm`,
 //! `.dtcm` and `.dtcm_bss` blocks), so the check and the script cannot drift apart:
 //! every function whose input section (`.text.<symbol>` or `.text.unlikely.<symbol>`)
-//! a `.itcm` pattern matches must lie in `.itcm`, every static whose `.bss.<symbol>`
-//! / `.data.<symbol>` a DTCM pattern matches must lie in DTCM. A pattern that stops
-//! matching (a renamed module, a changed mangling) leaves nothing in ITCM, which
-//! fails too.
+//! a `.itcm` pattern matches must lie in `.itcm`, or in `.flash_cold`, where
+//! `memory.x` keeps the cold code of the hot modules (read before `.itcm`, so it
+//! takes only what its own patterns match), never in `.text`; every static whose
+//! `.bss.<symbol>` / `.data.<symbol>` a DTCM pattern matches must lie in DTCM. A
+//! pattern that stops matching (a renamed module, a changed mangling) leaves
+//! nothing in ITCM, which fails too.
 
 use object::{Object, ObjectSection, ObjectSymbol, SymbolKind};
 use std::path::Path;
@@ -26,9 +28,24 @@ pub struct Tcm {
     /// Bytes of `.itcm` (hot code), and how many functions the patterns matched.
     pub itcm: u64,
     pub itcm_functions: usize,
+    /// Functions of the hot modules kept in flash as cold (`.flash_cold`), and
+    /// their bytes.
+    pub cold_functions: usize,
+    pub cold_bytes: u64,
     /// Bytes of `.dtcm` + `.dtcm_bss` (hot state), and how many statics matched.
     pub dtcm: u64,
     pub dtcm_statics: usize,
+}
+
+/// Whether `line` opens the description of output section `name`.
+fn opens(line: &str, name: &str) -> bool {
+    let line = line.trim();
+    line.starts_with(name) && line[name.len()..].starts_with([' ', '\t'])
+}
+
+/// The line number where output section `name` is described.
+fn opening_line(script: &str, name: &str) -> Option<usize> {
+    script.lines().position(|l| opens(l, name))
 }
 
 /// The input-section patterns of output section `name` in the linker script text.
@@ -36,11 +53,11 @@ fn patterns(script: &str, name: &str) -> Vec<String> {
     let mut out = Vec::new();
     let mut inside = false;
     for line in script.lines() {
-        let line = line.trim();
-        if line.starts_with(name) && line[name.len()..].starts_with([' ', '\t']) {
+        if opens(line, name) {
             inside = true;
             continue;
         }
+        let line = line.trim();
         if !inside {
             continue;
         }
@@ -93,6 +110,27 @@ pub fn check(elf: &Path, memory_x: &Path) -> Result<Tcm, String> {
         // `.dtcm .dtcm.*` are for explicit `#[link_section]`s, not symbol names.
         .filter(|p| !p.starts_with(".dtcm"))
         .collect();
+    // `.flash_cold` must come first: lld gives an input section to the first
+    // matching output section in script order, so only then does it keep the cold
+    // functions of the hot modules out of `.itcm`.
+    match (
+        opening_line(&script, ".flash_cold"),
+        opening_line(&script, ".itcm"),
+    ) {
+        (Some(cold), Some(hot)) if cold < hot => {}
+        _ => {
+            return Err(format!(
+                "{}: `.flash_cold` must precede `.itcm` (cold code of the hot modules)",
+                memory_x.display()
+            ))
+        }
+    }
+    // The task polls are the bulk of the hot code and never cold: no exception.
+    let polls: Vec<String> = code
+        .iter()
+        .filter(|p| p.contains("4poll"))
+        .cloned()
+        .collect();
     if code.is_empty() || state.is_empty() {
         return Err(format!(
             "{}: no input-section patterns found in the .itcm / .dtcm_bss blocks",
@@ -109,6 +147,8 @@ pub fn check(elf: &Path, memory_x: &Path) -> Result<Tcm, String> {
             .ok_or_else(|| format!("{}: no {name} section", elf.display()))
     };
     let itcm = section(".itcm")?;
+    // The linker drops an empty output section: no cold code then.
+    let cold = section(".flash_cold").unwrap_or(0..0);
     let dtcm = section(".dtcm")?;
     let dtcm_bss = section(".dtcm_bss")?;
     let symbol = |name: &str| {
@@ -147,6 +187,8 @@ pub fn check(elf: &Path, memory_x: &Path) -> Result<Tcm, String> {
     }
 
     let mut itcm_functions = 0;
+    let mut cold_functions = 0;
+    let mut cold_bytes = 0;
     let mut dtcm_statics = 0;
     for s in file.symbols() {
         let Ok(name) = s.name() else { continue };
@@ -160,8 +202,12 @@ pub fn check(elf: &Path, memory_x: &Path) -> Result<Tcm, String> {
             SymbolKind::Text => {
                 let sections = [format!(".text.{name}"), format!(".text.unlikely.{name}")];
                 if matches_any(&code, &sections) {
-                    itcm_functions += 1;
-                    if !itcm.contains(&addr) {
+                    if itcm.contains(&addr) {
+                        itcm_functions += 1;
+                    } else if cold.contains(&addr) && !matches_any(&polls, &sections) {
+                        cold_functions += 1;
+                        cold_bytes += s.size();
+                    } else {
                         errors.push(format!(
                             "hot function at {addr:#010x}, not in .itcm: {name}"
                         ));
@@ -193,6 +239,8 @@ pub fn check(elf: &Path, memory_x: &Path) -> Result<Tcm, String> {
         Ok(Tcm {
             itcm: itcm.end - itcm.start,
             itcm_functions,
+            cold_functions,
+            cold_bytes,
             dtcm: (dtcm.end - dtcm.start) + (dtcm_bss.end - dtcm_bss.start),
             dtcm_statics,
         })
@@ -207,7 +255,7 @@ pub fn check(elf: &Path, memory_x: &Path) -> Result<Tcm, String> {
 
 #[cfg(test)]
 mod tests {
-    use super::{glob, patterns};
+    use super::{glob, opening_line, patterns};
 
     #[test]
     fn glob_matches_like_the_linker() {
@@ -239,6 +287,60 @@ mod tests {
         assert!(!glob("ab*b", "ab"));
     }
 
+    /// The patterns of `memory.x` against real v0 names (HANS-100 -> HANS-100 build).
+    #[test]
+    fn hot_and_cold_patterns_split_as_intended() {
+        let poll = ".text._RNvMs1_NtCsfXHtcMZqoOm_16embassy_executor3rawINtB5_11TaskStorageNCNvNv\
+                    NtNtCsfB4nzik74cd_8firmware5tasks7hans_in18___hans_decode_task33___hans_\
+                    decode_task_inner_function0E4pollB1a_";
+        let spawn = ".text._RINvMNtNtCsfXHtcMZqoOm_16embassy_executor3raw4utilINtB3_10UninitCell\
+                     NCNvNvNtNtCsfB4nzik74cd_8firmware5tasks7hans_in18___hans_decode_task33___\
+                     hans_decode_task_inner_function0E14write_in_placeNCNvB1r_11hans_decode0EB1x_";
+        let task = ".text._R*18___hans_decode_task*4poll*";
+        assert!(glob(task, poll));
+        assert!(!glob(task, spawn), "spawn-time code is not the task's poll");
+        // `#[cold]` functions come as `.text.unlikely.`: not hot, `.flash_cold`'s.
+        let hot = ".text._R*6shared4hans2rx*";
+        let rephased = "_RNvMs_NtNtCs6jdyWnklaPu_6shared4hans2rxNtB4_6HansRx8rephased";
+        assert!(glob(hot, &format!(".text.{rephased}")));
+        assert!(!glob(hot, &format!(".text.unlikely.{rephased}")));
+        assert!(glob(
+            ".text.unlikely.*",
+            &format!(".text.unlikely.{rephased}")
+        ));
+        // Constructors by name only: `HansRx::new` is cold, `Frame::new` is not matched.
+        let new = ".text._R*6shared4hans2rx*6HansRx3new";
+        assert!(glob(
+            new,
+            ".text._RNvMs_NtNtCs6jdyWnklaPu_6shared4hans2rxNtB4_6HansRx3new"
+        ));
+        assert!(!glob(
+            new,
+            ".text._RNvMNtNtCs6jdyWnklaPu_6shared4hans5frameNtB2_5Frame3new"
+        ));
+        assert!(!glob(
+            new,
+            ".text._RNvMs_NtNtCs6jdyWnklaPu_6shared4hans2rxNtB4_6HansRx3newer"
+        ));
+        // Debug impls, with `core::fmt` spelled out or as a back-reference.
+        let debug = ".text._R*5Debug3fmt*";
+        assert!(glob(
+            debug,
+            ".text._RNvXs1g_NtCs7ldSeZOOJos_4core3fmtRNtNtNtCs6jdyWnklaPu_6shared3xy22rx\
+             12FramingFaultNtB6_5Debug3fmtCsjX6BYcUsawX_3hil"
+        ));
+        assert!(glob(
+            debug,
+            ".text._RNvXs_NtNtCs6jdyWnklaPu_6shared4hans5frameNtB4_5FrameNtNtCs7ldSeZOOJos_\
+             4core3fmt5Debug3fmt"
+        ));
+        assert!(glob(
+            ".text._R*6Format*format*",
+            ".text._RNvXs_NtNtCs6jdyWnklaPu_6shared4hans2rxNtB4_4ModeNtNtCs720NRxyUi84_\
+             5defmt6traits6Format12_format_data"
+        ));
+    }
+
     #[test]
     fn patterns_are_read_per_output_section() {
         let script = "SECTIONS {\n  .itcm ORIGIN(ITCM) + 32 : ALIGN(8)\n  {\n    __sitcm = .;\n    \
@@ -248,5 +350,12 @@ mod tests {
             [".text.*a*", ".text.*b*", ".text.*c*"]
         );
         assert_eq!(patterns(script, ".itcm_x"), Vec::<String>::new());
+        let script = "SECTIONS {\n  .flash_cold : ALIGN(4)\n  {\n    *(.text.unlikely.*)\n  } \
+                      > FLASH\n  .itcm ORIGIN(ITCM) + 32 : ALIGN(8)\n  {\n    *(.text.*a*)\n  }\n}";
+        assert_eq!(patterns(script, ".flash_cold"), [".text.unlikely.*"]);
+        assert_eq!(patterns(script, ".itcm"), [".text.*a*"]);
+        assert_eq!(opening_line(script, ".flash_cold"), Some(1));
+        assert_eq!(opening_line(script, ".itcm"), Some(5));
+        assert_eq!(opening_line("/* `.itcm` holds */", ".itcm"), None);
     }
 }
