@@ -97,3 +97,48 @@ fn damaged_bytes_are_refused_at_boot() {
     bad.output.frame_rate_hz = 7;
     assert_eq!(load(&postcard::to_stdvec(&bad).unwrap()), None);
 }
+
+/// The protocol a `configs/` file name puts on one side (`xy2-word` -> XY2-100).
+fn named(side: &str) -> Protocol {
+    match side.split('-').next() {
+        Some("xy2") => Protocol::Xy2,
+        Some("xy3") => Protocol::Xy3,
+        Some("hans") => Protocol::Hans,
+        _ => panic!("configs/ file names are CONTROLLER-to-HEAD: {side}"),
+    }
+}
+
+/// Every example in `configs/` (the rows of README "Firmware size", one per pairing
+/// an engineer commissions) bakes as build.rs would, loads as the firmware would, and
+/// is the pairing its name says: a file that drifted from the schema, or was copied
+/// without its protocols changed, fails here and not at a factory's build.
+#[test]
+fn every_example_config_bakes_as_named() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../configs");
+    let mut names: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    names.sort();
+        let mut pairs = std::collections::HashSet::new();
+    for path in &names {
+        let text = std::fs::read_to_string(path).unwrap();
+        let stem = path.file_stem().unwrap().to_str().unwrap();
+        let bytes = bake(&text).unwrap_or_else(|e| panic!("{stem}: {e}"));
+        let config = load(&bytes).unwrap_or_else(|| panic!("{stem}: does not load"));
+        let (ctrl, head) = stem.split_once("-to-").expect("CONTROLLER-to-HEAD");
+        assert_eq!(config.controller.protocol, named(ctrl), "{stem}: controller");
+        assert_eq!(config.head.protocol, named(head), "{stem}: head");
+        assert_ne!(config, Config::default(), "{stem}: the default file again");
+        assert!(
+            text.contains(&format!("configs/{stem}.toml")),
+            "{stem}: its header names another file"
+        );
+        pairs.insert((config.controller.protocol, config.head.protocol));
+    }
+    // With the shipped XY2-100 -> XY3-100, every one of the nine pairings has an
+    // example.
+    pairs.insert((Protocol::Xy2, Protocol::Xy3));
+    assert_eq!(pairs.len(), 9, "{pairs:?}");
+}
