@@ -121,14 +121,18 @@ fn every_example_config_bakes_as_named() {
         .filter(|p| p.extension().is_some_and(|x| x == "toml"))
         .collect();
     names.sort();
-        let mut pairs = std::collections::HashSet::new();
+    let mut pairs = std::collections::HashSet::new();
     for path in &names {
         let text = std::fs::read_to_string(path).unwrap();
         let stem = path.file_stem().unwrap().to_str().unwrap();
         let bytes = bake(&text).unwrap_or_else(|e| panic!("{stem}: {e}"));
         let config = load(&bytes).unwrap_or_else(|| panic!("{stem}: does not load"));
         let (ctrl, head) = stem.split_once("-to-").expect("CONTROLLER-to-HEAD");
-        assert_eq!(config.controller.protocol, named(ctrl), "{stem}: controller");
+        assert_eq!(
+            config.controller.protocol,
+            named(ctrl),
+            "{stem}: controller"
+        );
         assert_eq!(config.head.protocol, named(head), "{stem}: head");
         assert_ne!(config, Config::default(), "{stem}: the default file again");
         assert!(
