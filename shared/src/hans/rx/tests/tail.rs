@@ -113,3 +113,196 @@ fn mode_channels(mode: Mode) -> Vec<u8> {
         .filter(|&c| mode.channel_mask() & bit(c) != 0)
         .collect()
 }
+
+/// Frame [`SHORT_AT`] of [`short_excursion`]'s lines: late enough that every
+/// lock, ±25 % jitter included, has settled ([`LOCK`] plus the slowest
+/// acquisitions of `limits_over_many_locks`).
+const SHORT_AT: usize = 20;
+
+/// `n` frames of `seed` sent back to back, [`SHORT_AT`]'s DATA3 with its last 16
+/// bits zero when `square` (pairs `0 1`: a tail read a whole bit off still holds
+/// valid pairs, each with the other data bit), sampled at `ratio` from `phase`
+/// bits, every bit boundary moved by a uniform random amount within ±`jitter`
+/// bits and the boundaries of [`SHORT_AT`]'s last `pairs` pairs (from the first
+/// bit of its pair `61 - pairs` to the middle of pair 60; the stop field's are
+/// where they belong) `delta` bits more: a transient excursion of the line's
+/// phase that the stop field takes back up.
+#[allow(clippy::too_many_arguments)]
+fn short_excursion(
+    n: usize,
+    seed: u32,
+    square: bool,
+    ratio: f64,
+    phase: f64,
+    jitter: f64,
+    pairs: usize,
+    delta: f64,
+) -> (Vec<Frame>, Vec<u16>) {
+    let mut sent = frames(n, seed);
+    if square {
+        let f = sent[SHORT_AT];
+        sent[SHORT_AT] = frame(f.data1(), f.data2(), f.data3() & !0xFFFF);
+    }
+    let bits = line_bits(&sent);
+    let mut x = u64::from(seed).wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    let mut uniform = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let moved = SHORT_AT * 125 + 122 - 2 * pairs..=SHORT_AT * 125 + 121;
+    // Boundary b (the start of bit b) lies at `at[b]`.
+    let at: Vec<f64> = (0..bits.len() + 2)
+        .map(|b| {
+            let j = (2.0 * uniform() - 1.0) * jitter;
+            b as f64 + j + if moved.contains(&b) { delta } else { 0.0 }
+        })
+        .collect();
+    let samples = ((bits.len() as f64 - phase - 2.0) * ratio) as usize;
+    let words = (0..samples / 16)
+        .map(|w| {
+            (0..16).fold(0u16, |word, k| {
+                let t = phase + (w * 16 + k) as f64 / ratio;
+                // The latest boundary at or before t (jitter and excursion stay
+                // within a bit, so it lies within two of t's whole bit).
+                let b = t as usize;
+                let i = (b.saturating_sub(2)..=b + 2)
+                    .rev()
+                    .find(|&i| at[i] <= t)
+                    .unwrap_or(0);
+                word << 1 | u16::from(bits.get(i).copied().unwrap_or(true))
+            })
+        })
+        .collect();
+    (sent, words)
+}
+
+/// Frames not sent that today's receiver publishes on the points of
+/// [`short_tail_excursions_never_publish_a_frame_not_sent`] (ratio, jitter,
+/// pairs, delta, of 24 lines): a known limit (README "Known limits", tail
+/// excursions), pinned so that no change makes it worse. Four pairs read half a
+/// bit off and more: the pairs a whole bit read turns into other valid pairs
+/// measure their edges half a bit early less up to a sample (a third of a bit at
+/// 3x), and four of eight such edges leave the tail's mean near 0.2 bit; at ±25 %
+/// on eight pairs 0.4 bit off, jitter read some pairs a bit off and left the
+/// others near 0.4, the mean inside a quarter bit.
+const KNOWN_WRONG: &[(f64, f64, usize, f64, usize)] = &[
+    (3.0, 0.0, 4, 0.4, 4),
+    (3.0, 0.0, 4, 0.5, 10),
+    (3.0, 0.15, 4, -0.5, 4),
+    (3.0, 0.15, 4, 0.5, 4),
+    (3.0, 0.2, 4, -0.5, 4),
+    (3.0, 0.25, 4, -0.5, 4),
+    (3.2, 0.0, 4, -0.5, 4),
+    (3.2, 0.2, 4, -0.5, 4),
+    (3.2, 0.25, 4, -0.5, 4),
+    (3.2, 0.25, 8, 0.4, 2),
+    (4.0, 0.15, 4, -0.5, 4),
+    (4.0, 0.15, 4, 0.5, 2),
+    (4.0, 0.2, 4, -0.5, 4),
+    (4.0, 0.2, 4, 0.5, 2),
+    (4.0, 0.25, 4, -0.5, 4),
+    (4.0, 0.25, 4, 0.5, 2),
+];
+
+/// Short excursions of a frame's tail (its last 4, 8 or 12 pairs read 0.3 to 0.5
+/// bit off, either way; the start edges of the frame and its successor where
+/// they belong), at 3x, 3.2x and 4x, with and without jitter, in normal and
+/// super mode, on random data and on a square wave (the data a whole-bit read
+/// turns into other valid pairs), 6 seeds each. Every other frame after the
+/// lock is published, and no frame that was not sent, except at the points of
+/// [`KNOWN_WRONG`] (at most as many as today). The tail confirmation rejects
+/// the excursion frame on 8 or 12 pairs half a bit off, and 0.4 bit off at 3x
+/// and 3.2x, whatever the jitter. Prints, per point, how many excursion frames
+/// (and how many frames not sent) were published (with `--nocapture`).
+#[test]
+fn short_tail_excursions_never_publish_a_frame_not_sent() {
+    const SEEDS: u32 = 6;
+    const DELTAS: [f64; 6] = [-0.5, -0.4, -0.3, 0.3, 0.4, 0.5];
+    println!("excursion frames published (frames not sent published) of {SEEDS} seeds x 2 data x 2 modes");
+    println!("ratio jitter pairs | delta {DELTAS:?}");
+    for (ratio, hz) in [(3.0, 37_500_000), (3.2, 40_000_000), (4.0, 50_000_000)] {
+        for jitter in [0.0, 0.15, 0.2, 0.25] {
+            for pairs in [4, 8, 12] {
+                let mut row = String::new();
+                for delta in DELTAS {
+                    let (mut passed, mut wrong) = (0, 0);
+                    let point = format!("{ratio} ±{jitter} {pairs} pairs {delta} bit");
+                    for seed in 1..=SEEDS {
+                        for square in [false, true] {
+                            let phase = f64::from(seed) * 0.37 % 1.0;
+                            let (sent, words) = short_excursion(
+                                32, seed, square, ratio, phase, jitter, pairs, delta,
+                            );
+                            for mode in [Mode::Normal { channel: 2 }, Mode::Super] {
+                                let mut rx = HansRx::new(hz, mode).unwrap();
+                                let got = published(&run(&mut rx, &words, 16));
+                                let at = format!("{point}, {mode:?} seed {seed} square {square}");
+                                if got.iter().any(|f| !sent.contains(f)) {
+                                    wrong += 1;
+                                    continue;
+                                }
+                                let mut expect = sent.clone();
+                                if got.contains(&sent[SHORT_AT]) {
+                                    passed += 1;
+                                    let seen = (f64::abs(delta) >= 0.5 && pairs >= 8)
+                                        || (f64::abs(delta) >= 0.4 && pairs >= 8 && ratio < 4.0);
+                                    assert!(!seen, "{at}: excursion frame published");
+                                } else {
+                                    expect.remove(SHORT_AT);
+                                }
+                                assert_recovered(&expect, &got, SHORT_AT - 4);
+                            }
+                        }
+                    }
+                    let known = KNOWN_WRONG
+                        .iter()
+                        .find(|k| (k.0, k.1, k.2, k.3) == (ratio, jitter, pairs, delta))
+                        .map_or(0, |k| k.4);
+                    assert!(
+                        wrong <= known,
+                        "{point}: {wrong} lines published a frame not sent"
+                    );
+                    row += &format!(" {passed:>2} ({wrong})");
+                }
+                println!("{ratio:>5} {jitter:>6} {pairs:>5} |      {row}");
+            }
+        }
+    }
+}
+
+/// A whole-bit read of the last 7 pairs (the line 0.55 to 0.65 bit off there,
+/// either way, without jitter, at 3x and 3.2x): the pairs read a bit off
+/// measure their edges half a bit off less up to a sample (a third of a bit at
+/// 3x), 7 of 8 such edges put the mean beyond a quarter bit, and the frame
+/// (never sent, on data whose last bits repeat) is rejected. A wider tail
+/// check for jittered good frames (the last 8 pairs' mean up to 5/16 bit when
+/// the last 16's is within a quarter, README "Known limits") published frames
+/// not sent at 4 of these 12 points (up to 14 of the 24 lines a point), and
+/// the excursion frame at 2 more.
+#[test]
+fn a_whole_bit_read_of_seven_pairs_is_not_published() {
+    for (ratio, hz) in [(3.0, 37_500_000), (3.2, 40_000_000)] {
+        for delta in [-0.65, -0.6, -0.55, 0.55, 0.6, 0.65] {
+            for seed in 1..=6 {
+                for square in [false, true] {
+                    let phase = f64::from(seed) * 0.37 % 1.0;
+                    let (sent, words) =
+                        short_excursion(32, seed, square, ratio, phase, 0.0, 7, delta);
+                    for mode in [Mode::Normal { channel: 2 }, Mode::Super] {
+                        let mut rx = HansRx::new(hz, mode).unwrap();
+                        let got = published(&run(&mut rx, &words, 16));
+                        let at = format!("{ratio} {delta} bit, {mode:?} seed {seed} {square}");
+                        assert!(
+                            got.iter().all(|f| sent.contains(f)),
+                            "{at}: a frame not sent"
+                        );
+                        assert!(!got.contains(&sent[SHORT_AT]), "{at}: excursion published");
+                        assert!(got.len() >= 32 - LOCK - 2, "{at}: {} published", got.len());
+                    }
+                }
+            }
+        }
+    }
+}
