@@ -508,37 +508,37 @@ pub fn check(
         let byte = byte?;
         if index == 0 {
             let lead = byte.start - de_at(2 * message);
-            let lead_ns_here = grid.ns(lead);
-            if lead < grid.lead.0 {
-                return Err(DeError::DeLate {
+            let ns = grid.ns(lead);
+            within(
+                lead,
+                grid.lead,
+                DeError::DeLate {
                     message,
-                    lead_ns: lead_ns_here,
-                });
-            }
-            if lead > grid.lead.1 {
-                return Err(DeError::DeEarly {
+                    lead_ns: ns,
+                },
+                DeError::DeEarly {
                     message,
-                    lead_ns: lead_ns_here,
-                });
-            }
-            lead_ns.add(lead_ns_here);
+                    lead_ns: ns,
+                },
+            )?;
+            lead_ns.add(ns);
         }
         if index + 1 == messages[message].len() {
             let tail = de_at(2 * message + 1) - byte.end(&grid);
-            let tail_ns_here = grid.ns(tail);
-            if tail < grid.tail.0 {
-                return Err(DeError::DeReleasedEarly {
+            let ns = grid.ns(tail);
+            within(
+                tail,
+                grid.tail,
+                DeError::DeReleasedEarly {
                     message,
-                    tail_ns: tail_ns_here,
-                });
-            }
-            if tail > grid.tail.1 {
-                return Err(DeError::DeHeld {
+                    tail_ns: ns,
+                },
+                DeError::DeHeld {
                     message,
-                    tail_ns: tail_ns_here,
-                });
-            }
-            tail_ns.add(tail_ns_here);
+                    tail_ns: ns,
+                },
+            )?;
+            tail_ns.add(ns);
         }
     }
     Ok(Measured {
@@ -547,6 +547,18 @@ pub fn check(
         lead_window_ns: grid.span_ns(grid.lead),
         tail_window_ns: grid.span_ns(grid.tail),
     })
+}
+
+/// `Ok` when `t` lies within `window` (both ends included), else the error for the
+/// side it is out on.
+fn within(t: i64, window: (i64, i64), below: DeError, above: DeError) -> Result<(), DeError> {
+    if t < window.0 {
+        Err(below)
+    } else if t > window.1 {
+        Err(above)
+    } else {
+        Ok(())
+    }
 }
 
 #[cfg(test)]
