@@ -166,7 +166,7 @@ fn test_all() -> Result {
     let hil = newest_hil_elf()?;
     let tcm = placement::check(&hil, &root().join("memory.x"))?;
     println!(
-        "hil: ITCM {} bytes ({} hot functions; {} cold ones in flash), DTCM {} bytes",
+        "hil: ITCM {} bytes ({} hot functions; cold in flash: {}), DTCM {} bytes",
         tcm.itcm, tcm.itcm_functions, tcm.cold_functions, tcm.dtcm
     );
     qemu::run()?;
@@ -200,7 +200,7 @@ fn firmware_size() -> Result {
     // Hot code in ITCM, hot state in DTCM, as memory.x asks (fails otherwise).
     let tcm = placement::check(&elf, &root().join("memory.x"))?;
     println!(
-        "  ITCM: {} of {} KiB hot code ({} functions; {} cold ones, {} bytes, in flash); \
+        "  ITCM: {} of {} KiB hot code ({} functions; cold in flash: {} functions, {} bytes); \
          DTCM: {} of {} KiB hot state ({} statics)",
         tcm.itcm,
         ITCM_KIB,
