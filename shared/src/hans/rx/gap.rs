@@ -182,10 +182,9 @@ impl HansRx {
             return false;
         }
         // Frames predicted without a measured edge so far: those of a coast whose
-        // end has not been measured past, and a decoded frame's successor.
-        // (`Timing::at_recentre_start`: a young lock at that frame count reads the
-        // last coast's count too, only ever more cautious.)
-        let mut before = if t.at_recentre_start() {
+        // end has not been measured past (a re-centring before its first verified
+        // frame), and a decoded frame's successor.
+        let mut before = if t.recentring() {
             u64::from(self.gaps.coasted)
         } else {
             0

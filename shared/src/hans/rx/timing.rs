@@ -359,19 +359,6 @@ impl Timing {
         matches!(self.stage, Stage::Recentre { owed: RECENTRE, .. })
     }
 
-    /// True at the frame count a re-centring starts from ([`YOUNG`] -
-    /// [`RECENTRE`]): a re-centring before its first verified frame
-    /// ([`Timing::recentring`]), or a new lock's young fit that has counted that
-    /// many frames itself. `HansRx::coast` then adds the last coast's frames to
-    /// those it predicts (for the young fit a stale count: only more cautious).
-    pub(super) fn at_recentre_start(&self) -> bool {
-        match self.stage {
-            Stage::Young { frames, .. } => frames == YOUNG - RECENTRE,
-            Stage::Recentre { owed, .. } => owed == RECENTRE,
-            Stage::Settled => false,
-        }
-    }
-
     /// True once the lock has measured [`SETTLED`] start edges.
     pub fn settled(&self) -> bool {
         match self.stage {

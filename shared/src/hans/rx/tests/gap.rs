@@ -647,3 +647,41 @@ fn coasts_says_what_a_skip_does() {
     rx.skip(rx.max_gap_words() * 2, &mut |_| {});
     assert!(!rx.coasts());
 }
+
+/// A coast's frame count (`Gaps::coasted`) is for the re-centring right after it,
+/// not for a later lock: after a long coast, a lost lock and a new one, `coasts`
+/// still says exactly what a skip does at every chunk of the new lock's life. (The
+/// young fit's frame count that a re-centring starts from once also picked up the
+/// old coast's frames there, and a gap `coasts` promised to cross dropped the lock.)
+#[test]
+fn a_new_lock_does_not_inherit_an_old_coast() {
+    let a = Stream::new(160, 11, 3.2, 0.3, 0.0);
+    let b = Stream::new(60, 12, 3.2, 0.7, 0.0);
+    let mut rx = HansRx::new(40_000_000, Mode::Normal { channel: 1 }).unwrap();
+    // Settled on A, a coast of ~100 frames, and A again after it.
+    let (g0, long) = (50 * 25 + 3, 100 * 25);
+    let events = feed(&mut rx, &a.words, &[(g0, long)], 64);
+    let got = a.indices(&events);
+    check_gap(&a, &got, (g0, g0 + long), 0, "long coast");
+    assert!(rx.locked && !rx.timing.young());
+    // Noise drops that lock.
+    let n = noise(5, 400);
+    rx.push(&[&n[..]; 5], &mut |_| {});
+    assert!(!rx.locked, "noise kept the lock");
+    // B: a new lock. A gap of 60 frame periods is within the bound, but not with
+    // the old coast's ~100 added.
+    let gap = 60 * 25;
+    assert!(gap < rx.max_gap_words());
+    let mut young_coasts = 0;
+    for (k, part) in b.words.chunks(16).enumerate() {
+        rx.push(&[part; 5], &mut |_| {});
+        let mut copy = rx;
+        copy.skip(gap, &mut |_| {});
+        assert_eq!(copy.locked, rx.coasts(), "chunk {k}");
+        young_coasts += usize::from(rx.coasts() && rx.timing.young());
+    }
+    assert!(
+        young_coasts > 0,
+        "the young fit's last frames were not reached"
+    );
+}
