@@ -68,15 +68,18 @@ impl Channel {
 
     /// [`Channel::track`] of a measurement equal to the delay (a lone verified
     /// reference, whose own edge the shared timing follows): the step is zero, so
-    /// only the measurement is counted; no division.
-    pub fn hold(&mut self) -> bool {
-        let Some(d) = self.delay else { return false };
-        self.fits = (self.fits + 1).min(DELAY_FITS);
-        if (-DELAY_MAX..=DELAY_MAX).contains(&d) {
-            true
-        } else {
-            self.unalign();
-            false
+    /// only the measurement is counted; no division. The delay stays where
+    /// [`Channel::align`] or [`Channel::track`] put it, which only ever store one
+    /// within ±[`DELAY_MAX`], so unlike `track` this can never unalign.
+    pub fn hold(&mut self) {
+        #[cfg(test)]
+        assert!(
+            self.delay
+                .is_none_or(|d| (-DELAY_MAX..=DELAY_MAX).contains(&d)),
+            "{self:?}"
+        );
+        if self.delay.is_some() {
+            self.fits = (self.fits + 1).min(DELAY_FITS);
         }
     }
 

@@ -1130,18 +1130,8 @@ impl HansRx {
                 self.lose(sink);
                 return;
             }
-            if let (Some(ch), Some(stats)) = (
-                self.channels.get_mut(self.reference),
-                self.stats.get_mut(self.reference),
-            ) {
-                if ch.delay.is_some() && !ch.hold() {
-                    stats.resyncs = stats.resyncs.wrapping_add(1);
-                    sink(RxEvent::Fault {
-                        channel: Some(number(self.reference)),
-                        kind: FaultKind::Resync,
-                    });
-                    self.late = self.latest();
-                }
+            if let Some(ch) = self.channels.get_mut(self.reference) {
+                ch.hold();
             }
             self.dry = 0;
             return;
