@@ -14,8 +14,9 @@
 //! * `PF11` head-side line-driver enable (pulled down, off until an output runs);
 //!   `PF14` SCK-bus buffer enable (XY3 CLK from pair 2); `PF15` head-driver source
 //!   select (GPIO waveform / HANS serial) -- taken by the output drivers (issue 6).
-//! * NUCLEO LEDs: `PB0` LD1 green = heartbeat, `PE1` LD2 yellow = no valid input
-//!   (laser gate held off), `PB14` LD3 red = fault latched (also after a watchdog reset).
+//! * NUCLEO LEDs: `PB0` LD1 green = link OK (blinking: no link), `PE1` LD2 yellow =
+//!   activity (frames to the head), `PB14` LD3 red = fault (latched after a watchdog
+//!   reset); `tasks::leds` in the firmware binary.
 //!
 //! # Clock tree (RM0433 §8 "Reset and clock control")
 //! ```text
@@ -77,7 +78,7 @@ compile_error!(
 );
 
 /// Laser gate: port F bit 13 (`PF13`); `init` takes `p.PF13` for the same pin.
-const LASER_GATE_PIN: usize = 13;
+pub const LASER_GATE_PIN: usize = 13;
 
 /// Silicon revision, from DBGMCU_IDC.REV_ID (RM0433, debug support chapter).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]

@@ -30,7 +30,9 @@
 //! bridge_wave_out --BACK_TX (bytes), BACK_RATE--> back_to_controller (UART7)
 //! bridge_wave_out --HEAD_BACK_RATE--> back_from_head (USART2)
 //! CTRL_STATUS_OK --> status_level_out;  CTRL_STATUS_WORD --> [H] xy2_in (word out)
-//! supervisor --HEALTH--> leds;  everyone --STATS--> stats
+//! bridge loops --LINK_RUNNING, HEAD_FAULT, BRIDGE_BEAT--> supervisor --HEALTH--> leds,
+//!     status_level_out, [H] xy2_in (word out)
+//! everyone --STATS--> stats;  STATS.output_frames --> leds (activity)
 //! stats --SNAPSHOT_WANTED--> [H] bridge_wave_out --BRIDGE_SNAPSHOT--> stats
 //! ```
 
@@ -50,13 +52,21 @@ use shared::governor::Governor;
 use shared::model::{Alarms, HeadStatus, LineEvent};
 use shared::xy3::BackRate;
 
-/// Overall state shown on the LEDs.
+/// Overall state, published by the supervisor: the LEDs show it, and the XY2-100
+/// STATUS towards the controller says "fault" while `input_valid` is false.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
 pub struct Health {
-    /// Valid input frames are arriving (the bridge's link state is `Running`).
+    /// Valid input frames are arriving (the bridge's link state is `Running`, and its
+    /// loop completes batches): green LED on.
     pub input_valid: bool,
-    /// A fault is latched (watchdog reset at boot, link fault): red LED.
+    /// The bridge reports a fault beyond missing input (a head alarm, the head's
+    /// status lost: [`HEAD_FAULT`]), or its loop completes no batches (stalled, or
+    /// never started): red LED while it lasts.
     pub fault: bool,
+    /// The last reset was a watchdog reset (the firmware stalled): red LED, latched
+    /// until the next reset. Nothing else changes: the bridge starts afresh, as
+    /// after a power-on.
+    pub watchdog_reset: bool,
 }
 
 /// Subscribed receivers of [`HEALTH`]. The LED task polls through an anonymous
@@ -195,6 +205,11 @@ pub static BRIDGE_BEAT: AtomicU32 = AtomicU32::new(0);
 /// The bridge's link state is `Running` (valid input frames arrive).
 pub static LINK_RUNNING: AtomicBool = AtomicBool::new(false);
 
+/// The bridge reports an alarm other than `INPUT_LOST` (the head's alarms,
+/// `STATUS_LOST`) after its last batch: the red LED (a missing input shows as the
+/// green LED off instead).
+pub static HEAD_FAULT: AtomicBool = AtomicBool::new(false);
+
 /// XY2-100 STATUS towards the controller means "OK" (from the bridge's
 /// `xy2_status_line_high`, i.e. head alarms merged with the bridge's own).
 pub static CTRL_STATUS_OK: AtomicBool = AtomicBool::new(false);
@@ -241,7 +256,9 @@ pub struct Stats {
     pub input_overruns: AtomicU32,
     /// XY3 frame-end marks seen.
     pub sync_marks: AtomicU32,
-    /// Frames the bridge sent to the head (idle slots not counted).
+    /// Frames the bridge sent to the head (idle slots not counted). Not zeroed by
+    /// the statistics task: it counts on (wrapping), and the activity LED watches it
+    /// move.
     pub output_frames: AtomicU32,
     /// Output halves written (waveform) / HANS ring laps.
     pub output_halves: AtomicU32,

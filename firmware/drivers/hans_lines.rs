@@ -11,6 +11,25 @@
 //! overrun on any channel breaks that alignment for good, so the caller drops the
 //! whole set and starts a new one (a new session) from the same [`HansInput`].
 //!
+//! Register sequence of a session ([`HansInput::start`]), on top of the two drivers
+//! it combines:
+//! 1. fs held low: TIM3 CH1's compare value 0, applied by the preloaded CCR at the
+//!    next update event, within one fs period (RM0433, general-purpose timers
+//!    TIM2..TIM5, output compare preload; [`Fs::hold_low`]). The SCK bus then stays low, the idle level of CPOL = 0.
+//! 2. Each used channel's SPI configured and enabled as a receive-only slave with
+//!    software slave select held active (SSM = 1, SSI = 0) and its circular DMA
+//!    stream running before SPE = 1 (RM0433 §50.4, slave select management and
+//!    DMA; [`SpiSlaveRx::new`]). An SPI slave has no frame sync of its own: it
+//!    shifts in one bit per SCK sampling edge while SPE = 1 and packs them into
+//!    words counted from the first edge after enabling (RM0433 §50.4, data frame
+//!    size and packing), which is why every SPI must be enabled before fs runs.
+//! 3. fs runs (compare value = half the period, from the next update: a whole first
+//!    pulse, [`Fs::run`]): every SPI sees the same first edge, so word `i` of every
+//!    ring covers the same 16 samples.
+//! 4. Reading: an overrun (RxFIFO OVR, RM0433 §50.4 error flags, or a DMA ring lap
+//!    by the reader, RM0433 §15.3 circular mode) loses words on one channel only;
+//!    [`HansLines::read`] reports it and the caller starts a new session from 1.
+//!
 //! The firmware's `hans_in` task and the HIL test `hans_controller_loopback` both
 //! take their rings from [`hans_rings!`] and start every session through
 //! [`HansInput`], so the test runs the task's start sequence, not a copy of it.

@@ -1784,6 +1784,26 @@ mod tests {
         }
     }
 
+    /// The laser gate after `board::init` (no jumpers): PF13 must be an output
+    /// (MODER), written low (ODR) and low at the pad (IDR: the input stage reads
+    /// the pin in output mode too), and `Board::laser_gate` must say so. The test
+    /// never drives the gate high: a board with its transceivers fitted may have a
+    /// laser behind it.
+    #[test]
+    fn laser_gate_is_off_after_init(board: Board) {
+        use pac::gpio::vals::{Idr, Moder, Odr};
+        let pin = board::LASER_GATE_PIN;
+        let port = pac::GPIOF;
+        assert_eq!(
+            port.moder().read().moder(pin),
+            Moder::OUTPUT,
+            "PF13 not driven"
+        );
+        assert_eq!(port.odr().read().odr(pin), Odr::LOW, "PF13 written high");
+        assert_eq!(port.idr().read().idr(pin), Idr::LOW, "PF13 high at the pad");
+        assert!(board.laser_gate.is_set_low());
+    }
+
     /// Hot code in ITCM (no jumpers; firmware/tcm.rs, `memory.x`). `__pre_init`
     /// copied `.itcm` from flash before `main`: the running image must equal its load
     /// image byte for byte, `hans::Frame::decode` (a per-frame `shared::hans::frame`

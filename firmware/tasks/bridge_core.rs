@@ -10,15 +10,16 @@ use core::sync::atomic::Ordering;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::watch::AnonReceiver;
 use shared::bridge::{Bridge, Config, LinkState, Output, StatusForm, ZSource};
-use shared::model::{Axis, FaultKind, ForwardFrame, HeadStatus, Line, LineEvent};
+use shared::model::{Alarms, Axis, FaultKind, ForwardFrame, HeadStatus, Line, LineEvent};
 use shared::xy3::back::SEND_BUF_LEN;
 use shared::xy3::BackRate;
 use shared::{xy2, xy3};
 
 use crate::channels::{
     set_laser_gate, BridgeSnapshot, Stats, Xy3Raw, BACK_RATE, BACK_TX, BRIDGE_BEAT,
-    BRIDGE_SNAPSHOT, CTRL_STATUS_OK, CTRL_STATUS_WORD, HEAD_BACK_RATE, HEAD_STATUS, LINK_RUNNING,
-    RAW_INPUT, SNAPSHOT_WANTED, STATS, XY2_HALF, XY3_HALF, XY3_INPUT, XY3_LINES, XY3_RESYNC,
+    BRIDGE_SNAPSHOT, CTRL_STATUS_OK, CTRL_STATUS_WORD, HEAD_BACK_RATE, HEAD_FAULT, HEAD_STATUS,
+    LINK_RUNNING, RAW_INPUT, SNAPSHOT_WANTED, STATS, XY2_HALF, XY3_HALF, XY3_INPUT, XY3_LINES,
+    XY3_RESYNC,
 };
 use crate::config::{Controller, Head, BAKED_ROLES};
 
@@ -343,8 +344,8 @@ impl Core {
     /// After a batch of slots (`gate`: every slot allowed the gate) at bridge time
     /// `now_ns`: the laser gate (off at once; on only after [`GATE_ON_HISTORY`]
     /// batches), the statistics snapshot, the XY2 STATUS level and word towards the
-    /// controller, the supervisor's heartbeat, the XY3-100 backchannel and the HANS
-    /// STATUS frames towards a HANS-100 controller.
+    /// controller, the supervisor's heartbeat and fault flag, the XY3-100
+    /// backchannel and the HANS STATUS frames towards a HANS-100 controller.
     pub(super) fn end_batch(&mut self, gate: bool, now_ns: u64) {
         self.gate_history = (self.gate_history << 1 | u8::from(gate)) & GATE_ON_HISTORY;
         let gate_on = self.gate_history == GATE_ON_HISTORY;
@@ -360,6 +361,8 @@ impl Core {
         }
         let ok = self.ctrl_level.health(self.bridge.xy2_status_line_high()) == xy2::Health::Ok;
         CTRL_STATUS_OK.store(ok, Ordering::Relaxed);
+        let fault = self.bridge.reported_alarms().0 & !Alarms::INPUT_LOST.0 != 0;
+        HEAD_FAULT.store(fault, Ordering::Relaxed);
         let word = self.bridge.xy2_status_word().to_word();
         CTRL_STATUS_WORD.store(u32::from(word), Ordering::Relaxed);
         BRIDGE_BEAT.fetch_add(1, Ordering::Relaxed);

@@ -69,10 +69,7 @@ impl CtrlWord {
 
     /// The word to send now (module docs).
     fn word(&mut self) -> StatusWord {
-        let healthy = self
-            .health
-            .try_get()
-            .is_some_and(|h| h.input_valid && !h.fault);
+        let healthy = self.health.try_get().is_some_and(|h| h.input_valid);
         let published = CTRL_STATUS_WORD.load(Ordering::Relaxed);
         match u16::try_from(published).ok().map(StatusWord::from_word) {
             Some(Ok(w)) if healthy => w,

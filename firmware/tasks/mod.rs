@@ -29,7 +29,9 @@ use embassy_time::{Duration, Ticker};
 
 use core::sync::atomic::Ordering;
 
-use crate::channels::{set_laser_gate, Health, BRIDGE_BEAT, HEALTH, LASER_GATE, LINK_RUNNING};
+use crate::channels::{
+    set_laser_gate, Health, BRIDGE_BEAT, HEAD_FAULT, HEALTH, LASER_GATE, LINK_RUNNING, STATS,
+};
 use crate::drivers::sync_marks::SyncEdgeHandler;
 
 bind_interrupts!(
@@ -80,7 +82,7 @@ const SUPERVISOR_PERIOD: Duration = Duration::from_millis(50);
 pub async fn supervisor(
     iwdg: Peri<'static, IWDG1>,
     mut laser_gate: Output<'static>,
-    fault_at_boot: bool,
+    watchdog_reset: bool,
 ) {
     laser_gate.set_low();
     LASER_GATE.lock(|g| *g.borrow_mut() = Some(laser_gate));
@@ -90,7 +92,8 @@ pub async fn supervisor(
 
     let mut health = Health {
         input_valid: false,
-        fault: fault_at_boot,
+        fault: false,
+        watchdog_reset,
     };
     HEALTH.sender().send(health);
 
@@ -104,17 +107,31 @@ pub async fn supervisor(
         if !alive {
             set_laser_gate(false);
         }
-        let input_valid = alive && LINK_RUNNING.load(Ordering::Relaxed);
-        if input_valid != health.input_valid {
-            health.input_valid = input_valid;
+        let now = Health {
+            input_valid: alive && LINK_RUNNING.load(Ordering::Relaxed),
+            fault: !alive || HEAD_FAULT.load(Ordering::Relaxed),
+            watchdog_reset,
+        };
+        if now != health {
+            health = now;
             HEALTH.sender().send(health);
         }
         watchdog.pet();
     }
 }
 
-/// Green LED blinks at 1 Hz while the thread executor runs; yellow shows "no valid
-/// input" (laser gate held off); red shows a latched fault.
+/// LED update period: the activity LED's flicker.
+const LED_PERIOD: Duration = Duration::from_millis(50);
+/// LED periods per half blink of the green LED while the link is not OK (1 Hz).
+const BLINK_PERIODS: u32 = 10;
+
+/// The three NUCLEO LEDs (README "Boot sequence and fail-safety"):
+/// * LD1 green, **link OK**: on while valid input frames arrive; blinking at 1 Hz
+///   otherwise (the thread executor runs, but there is no link);
+/// * LD2 yellow, **activity**: flickers (toggles every 50 ms) while frames go out to
+///   the head, off when none do;
+/// * LD3 red, **fault**: on while the bridge reports a head alarm or lost head
+///   status, or its loop is not running; on for good after a watchdog reset.
 #[embassy_executor::task]
 pub async fn leds(
     mut green: Output<'static>,
@@ -122,13 +139,29 @@ pub async fn leds(
     mut red: Output<'static>,
 ) {
     let mut health = HEALTH.anon_receiver();
-    let mut ticker = Ticker::every(Duration::from_millis(500));
+    let mut h = Health {
+        input_valid: false,
+        fault: false,
+        watchdog_reset: false,
+    };
+    let mut ticker = Ticker::every(LED_PERIOD);
+    let mut frames = STATS.output_frames.load(Ordering::Relaxed);
+    let mut periods = 0u32;
     loop {
-        green.toggle();
-        if let Some(h) = health.try_changed() {
-            yellow.set_level((!h.input_valid).into());
-            red.set_level(h.fault.into());
+        if let Some(now) = health.try_changed() {
+            h = now;
         }
+        periods = periods.wrapping_add(1);
+        let blink_on = (periods / BLINK_PERIODS).is_multiple_of(2);
+        green.set_level((h.input_valid || blink_on).into());
+        let sent = STATS.output_frames.load(Ordering::Relaxed);
+        if sent != frames {
+            yellow.toggle();
+        } else {
+            yellow.set_low();
+        }
+        frames = sent;
+        red.set_level((h.fault || h.watchdog_reset).into());
         ticker.next().await;
     }
 }

@@ -13,8 +13,7 @@ use crate::channels::{
 };
 
 /// How long to wait for the bridge's snapshot: it answers within one output batch
-/// (at most 250 us); longer means it is not running (stalled, never started, or a
-/// HANS-100 head, which has no bridge loop yet).
+/// (at most 250 us); longer means it is not running (stalled, or never started).
 const SNAPSHOT_WAIT: Duration = Duration::from_millis(5);
 
 /// Every line the bridge counts faults on, in print order.
@@ -128,6 +127,8 @@ pub async fn stats() {
     let mut head = HEAD_STATUS.anon_receiver();
     let mut ticker = Ticker::every(Duration::from_secs(1));
     let mut before = Counters::default();
+    // `output_frames` counts on (the activity LED watches it): print its gain.
+    let mut frames_before = STATS.output_frames.load(Ordering::Relaxed);
     loop {
         ticker.next().await;
         // Ask first: the bridge answers after its current batch, while the line
@@ -136,6 +137,7 @@ pub async fn stats() {
         SNAPSHOT_WANTED.store(true, Ordering::Relaxed);
         let alarms = head.try_get().map(|s| s.alarms.0).unwrap_or(0);
         let s = &STATS;
+        let frames = s.output_frames.load(Ordering::Relaxed);
         defmt::info!(
             "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames ({} refused), {} halves \
              ({} underruns, {} status realigns), back {} packets ({} resyncs, {} errors), \
@@ -143,7 +145,7 @@ pub async fn stats() {
             Stats::take(&s.input_halves),
             Stats::take(&s.input_overruns),
             Stats::take(&s.sync_marks),
-            Stats::take(&s.output_frames),
+            frames.wrapping_sub(frames_before),
             Stats::take(&s.output_refused),
             Stats::take(&s.output_halves),
             Stats::take(&s.output_underruns),
@@ -155,6 +157,7 @@ pub async fn stats() {
             Stats::take(&s.status_faults),
             alarms,
         );
+        frames_before = frames;
         print_decode();
         match with_timeout(SNAPSHOT_WAIT, BRIDGE_SNAPSHOT.wait()).await {
             Ok(snap) => {

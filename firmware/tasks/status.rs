@@ -131,7 +131,7 @@ pub async fn status_level_out(pin: Output<'static>, level: StatusLevel) {
     let mut health = HEALTH.anon_receiver();
     let mut ticker = Ticker::every(Duration::from_millis(10));
     loop {
-        let input_valid = health.try_get().is_some_and(|h| h.input_valid && !h.fault);
+        let input_valid = health.try_get().is_some_and(|h| h.input_valid);
         output.set(if input_valid && CTRL_STATUS_OK.load(Ordering::Relaxed) {
             Health::Ok
         } else {
