@@ -138,9 +138,10 @@
 //! [`confirm`], adds 150..230 (about 230 in `confirmed` for the reference's 8
 //! last mid-pair edges, the rest the code around the call; before it 1 780 /
 //! 1 870 / 2 690 / 3 170, firmware 1 830 / 3 290, young lock 5 780). The young
-//! lock ([`phase`], its first [`timing::YOUNG`] frames) costs 5 980 in super mode as the firmware feeds it (bench row "young
-//! lock", frames 4..36; 8 530 before `phase::mid_pairs` was made a register-only
-//! loop of ~28 instructions an edge): ~1 700 measuring the 61 mid-pair edges,
+//! lock ([`phase`], its first [`timing::YOUNG`] frames) costs 5 110 in super mode as the firmware feeds it (bench row "young
+//! lock", frames 4..36; 5 790 before its fit took every other pair after four
+//! frames, [`timing::DENSE`]; 8 530 before `phase::mid_pairs` was made a register-only
+//! loop of ~28 instructions an edge): ~930 measuring the 31 even mid-pair edges (~1 700 all 61),
 //! ~320 the fit's 64-bit divisions, ~430 the frame step's and `Timing::advance`'s
 //! fit bookkeeping; and for ~70 frames after it the rate settles from the fit's
 //! estimate, dropping the gather table at every step (~370 more per frame,
@@ -773,14 +774,14 @@ impl HansRx {
         };
         let verified = self.evaluate(patterns, aligned, same, confirmed, ref_pattern, &mut gated);
         // A young lock learns phase and rate from the verified reference's mid-pair
-        // edges (`timing::YOUNG`; not a re-read frame's, `Timing::refine`).
+        // edges (`timing::YOUNG`; not a re-read frame's, `Timing::refine`): every
+        // pair's while the fit is thin, then every other pair's (`timing::DENSE`).
         if let (true, Some(ring)) = (
             verified & (1 << reference) != 0 && self.timing.young(),
             self.rings.get(reference),
         ) {
             let at = start.wrapping_add(ref_delay as u32);
-            let p = phase::mid_pairs(ring, at, ratio, ref_pattern);
-            self.timing.refine(&p);
+            self.timing.learn(ring, at, ref_pattern);
         }
         self.pending = Some((verified, same));
     }

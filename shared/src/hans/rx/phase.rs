@@ -12,7 +12,9 @@
 //! pairs') at known bit boundaries whatever the data: measuring them on a verified
 //! frame gives 61 more points for the fit, and the lock is precise (a few
 //! hundredths of a sample of phase, a few thousandths of a sample of period) after
-//! a few frames instead of a few hundred.
+//! a few frames instead of a few hundred. Once the fit holds a few frames of them
+//! it takes every other pair only ([`even_mid_pairs`], [`super::timing::DENSE`]):
+//! later frames mostly add lever arm for the rate, at half the cost.
 //!
 //! # The fit in information form
 //! The points are residuals against the current timing line `start + k·ratio`
@@ -100,8 +102,6 @@ impl Points {
 /// on the M7, where the per-edge residuals, unrolled, took ~67).
 pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
     let mut edges = PairEdges::new(start, ratio, 0);
-    // Edge of pair 0 (bit boundary 1); pair i's is `step` further per pair.
-    let at0 = start.wrapping_add(ratio as u32);
     // The pairs' first bits, left-aligned: the line's first bit at bit 127.
     let p = pattern << 3;
     let words = [
@@ -128,21 +128,119 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
             core::hint::black_box(());
         }
     }
-    // Σ(edge_i - at_i) and Σk_i·(edge_i - at_i) with k_i = 2i + 1, i = 0..61:
-    // Σk_i = 3 721, Σi = 1 830, Σi·k_i = 2·Σi² + Σi = 149 450.
-    let step = edges.step;
-    let r_sum = (c_sum << FRAC)
-        .wrapping_sub(PAIRS.wrapping_mul(HALF))
-        .wrapping_sub(PAIRS.wrapping_mul(at0))
-        .wrapping_sub(1_830u32.wrapping_mul(step));
-    let kr_sum = (kc_sum << FRAC)
-        .wrapping_sub(3_721u32.wrapping_mul(HALF))
-        .wrapping_sub(3_721u32.wrapping_mul(at0))
-        .wrapping_sub(149_450u32.wrapping_mul(step));
-    // A residual lies within half a bit and a sample of its edge (< 2^18 for any
-    // ratio up to 4.2), so the sums fit i32: 61 * 2^18 and 3 721 * 2^18 < 2^31
-    // (and for any other input they are what the wrapping per-point sums were).
-    points(r_sum as i32, kr_sum as i32)
+    Geometry::of(1).points(start, ratio, edges.step, c_sum, kc_sum)
+}
+
+/// [`mid_pairs`] on the even pairs only (0, 2, ... 60: 31 edges spread evenly
+/// over the frame, its first pair and its last), at half the cost: the young
+/// lock's fit once it holds a few frames' edges ([`super::timing`]).
+///
+/// One loop over the 31 pairs, their first bits gathered into one word first
+/// (the pattern's bits 124, 120, ... 4): ~27 instructions an edge on the M7, ~930
+/// a frame. As four loops of eight pairs over the pattern's words, like
+/// [`mid_pairs`], LLVM unrolled them and spilled (~1 030), and with the trip
+/// counts hidden from it the per-word set-up cost as much.
+pub fn even_mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
+    let mut edges = PairEdges::new(start, ratio, 0).every(2);
+    // Bit 31 - j: the first bit of pair 2j, pattern bit 124 - 4j.
+    let bits = [
+        (pattern >> 96) as u32,
+        (pattern >> 64) as u32,
+        (pattern >> 32) as u32,
+        pattern as u32,
+    ]
+    .into_iter()
+    .fold(0u32, |acc, w| acc << 8 | every_fourth(w));
+    let (mut c_sum, mut kc_sum) = (0u32, 0u32);
+    let (mut k, mut bits) = (1u32, bits);
+    for _ in 0..EVEN.n {
+        let c = edges.count(ring, bits);
+        c_sum = c_sum.wrapping_add(c);
+        kc_sum = kc_sum.wrapping_add(k.wrapping_mul(c));
+        k += 4;
+        bits <<= 1;
+        // As in `mid_pairs`: keeps this a loop.
+        core::hint::black_box(());
+    }
+    EVEN.points(start, ratio, edges.step, c_sum, kc_sum)
+}
+
+/// Bits 28, 24, ... 0 of `w` as bits 7, 6, ... 0: the odd ones of each byte
+/// moved next to the even one (bits 8b + 1 and 8b), then the four two-bit groups
+/// gathered by one multiply (group b shifted by 24 - 6b; the other partial
+/// products land below bit 24 without overlapping, or above bit 31).
+#[inline(always)]
+fn every_fourth(w: u32) -> u32 {
+    let x = w & 0x1111_1111;
+    let x = (x | x >> 3) & 0x0303_0303;
+    x.wrapping_mul(1 << 24 | 1 << 18 | 1 << 12 | 1 << 6) >> 24
+}
+
+/// The even pairs' geometry ([`even_mid_pairs`]).
+const EVEN: Geometry = Geometry::of(2);
+
+/// The pairs 0, `stride`, 2·`stride`, ... 60 that a frame's fit takes (pair `s·j`
+/// with bit index `k_j = 2·s·j + 1` for `j` = 0..`n`): the sums of their
+/// geometry and of their expected edges' positions.
+struct Geometry {
+    /// Pairs taken.
+    n: u32,
+    /// Σj.
+    j: u32,
+    /// Σk_j.
+    k: u32,
+    /// Σk_j².
+    kk: u32,
+    /// Σj·k_j.
+    jk: u32,
+}
+
+impl Geometry {
+    /// Every `stride`th pair (a divisor of 60); all 61 at 1: Σk_j = 3 721,
+    /// Σj = 1 830, Σj·k_j = 2·Σj² + Σj = 149 450.
+    const fn of(stride: u32) -> Geometry {
+        let n = (PAIRS - 1) / stride + 1;
+        // Σj and Σj² for j = 0..n.
+        let j = n * (n - 1) / 2;
+        let jj = (n - 1) * n * (2 * n - 1) / 6;
+        let s = 2 * stride;
+        Geometry {
+            n,
+            j,
+            k: s * j + n,
+            kk: s * s * jj + 2 * s * j + n,
+            jk: s * jj + j,
+        }
+    }
+
+    /// The points of these pairs of the frame at `start` with `ratio`, whose
+    /// edges' sample counts sum to `c_sum` and, weighted by their bit indices, to
+    /// `kc_sum` (modulo 2^32), the windows moving on by `step` a pair taken.
+    /// Σ(edge_j - at_j) and Σk_j·(edge_j - at_j) with `at_j = at_0 + j·step`.
+    #[inline(always)]
+    fn points(&self, start: u32, ratio: i32, step: u32, c_sum: u32, kc_sum: u32) -> Points {
+        // Edge of pair 0 (bit boundary 1).
+        let at0 = start.wrapping_add(ratio as u32);
+        let r_sum = (c_sum << FRAC)
+            .wrapping_sub(self.n.wrapping_mul(HALF))
+            .wrapping_sub(self.n.wrapping_mul(at0))
+            .wrapping_sub(self.j.wrapping_mul(step));
+        let kr_sum = (kc_sum << FRAC)
+            .wrapping_sub(self.k.wrapping_mul(HALF))
+            .wrapping_sub(self.k.wrapping_mul(at0))
+            .wrapping_sub(self.jk.wrapping_mul(step));
+        // A residual lies within half a bit and a sample of its edge (< 2^18 for
+        // any ratio up to 4.2), so the sums fit i32: 61 * 2^18 and 3 721 * 2^18 <
+        // 2^31 (and for any other input they are what the wrapping per-point sums
+        // were).
+        Points {
+            n: i64::from(self.n),
+            k: i64::from(self.k),
+            kk: i64::from(self.kk),
+            r: i64::from(r_sum as i32),
+            kr: i64::from(kr_sum as i32),
+        }
+    }
 }
 
 /// Measures a frame's mid-pair edges one pair after the other (the module docs,
@@ -178,6 +276,16 @@ impl PairEdges {
             lo_q: at.wrapping_sub(half).wrapping_add(round),
             hi_q: at.wrapping_add(half).wrapping_add(round),
             step,
+        }
+    }
+
+    /// The same, moving on `stride` pairs at a time (pairs `first`, `first +
+    /// stride`, ...).
+    #[inline(always)]
+    fn every(self, stride: u32) -> PairEdges {
+        PairEdges {
+            step: self.step.wrapping_mul(stride),
+            ..self
         }
     }
 
@@ -217,19 +325,6 @@ impl PairEdges {
         let first = 0u32.wrapping_sub(bits >> 31);
         self.lo_q = self.lo_q.wrapping_add(self.step);
         (x ^ first).leading_zeros()
-    }
-}
-
-/// The points of a frame's 61 pairs with residual sums `r` and `kr`: every pair
-/// gives a point, so the geometry is a constant.
-fn points(r: i32, kr: i32) -> Points {
-    let pairs = i64::from(PAIRS);
-    Points {
-        n: pairs,
-        k: pairs * pairs,
-        kk: pairs * (4 * pairs * pairs - 1) / 3,
-        r: i64::from(r),
-        kr: i64::from(kr),
     }
 }
 
@@ -283,6 +378,11 @@ impl Fit {
         }
     }
 
+    /// Points in the fit.
+    pub fn points(&self) -> i64 {
+        self.n
+    }
+
     /// Moves the origin to the next frame's start edge: every point is a frame
     /// further back.
     pub fn next_frame(&mut self) {
@@ -329,48 +429,50 @@ pub(super) mod tests {
     const Q: f64 = 65536.0;
 
     /// The per-edge implementation `mid_pairs` replaced (before the sums were split
-    /// into sample counts and closed forms): it must give the same points.
-    fn mid_pairs_reference(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
+    /// into sample counts and closed forms), on every `stride`th pair: it must give
+    /// the same points.
+    fn mid_pairs_reference(
+        ring: &Ring,
+        start: u32,
+        ratio: i32,
+        pattern: u128,
+        stride: u32,
+    ) -> Points {
         let ratio = ratio as u32;
         let half = ratio / 2;
-        // The pairs' first bits, left-aligned: the line's first bit at bit 127.
-        let p = pattern << 3;
-        let words = [
-            (p >> 96) as u32,
-            (p >> 64) as u32,
-            (p >> 32) as u32,
-            p as u32,
-        ];
         // A residual lies within half a bit and a sample of its edge (< 2^18 for any
         // ratio up to 4.2), so the sums fit i32: 61 * 2^18 and 3 721 * 2^18 < 2^31.
         let (mut r_sum, mut kr_sum) = (0i32, 0i32);
-        // Edge of pair i (bit boundary 2i + 1).
-        let mut at = start.wrapping_add(ratio);
-        let mut k = 1i32;
-        let mut left = PAIRS;
-        for w in words {
-            let mut bits = w;
-            for _ in 0..left.min(16) {
-                // Window: the samples from `at - half` (rounded up) to before `at + half`.
-                let lo = at.wrapping_sub(half).wrapping_add((1 << FRAC) - 1) >> FRAC;
-                let hi = at.wrapping_add(half).wrapping_add((1 << FRAC) - 1) >> FRAC;
-                let n = hi.wrapping_sub(lo) & 0xFFFF;
-                let (j, s) = (lo >> 5, lo & 31);
-                let x = ring.window(j) << s | (ring.window(j.wrapping_add(1)) >> 1) >> (31 - s);
-                // Samples at the pair's first level, counted from the window's start.
-                let first = 0u32.wrapping_sub(bits >> 31);
-                let before = (x ^ first).leading_zeros().min(n);
-                let edge = (lo.wrapping_add(before) << FRAC).wrapping_sub(HALF);
-                let r = edge.wrapping_sub(at) as i32;
-                r_sum = r_sum.wrapping_add(r);
-                kr_sum = kr_sum.wrapping_add(k.wrapping_mul(r));
-                at = at.wrapping_add(ratio.wrapping_mul(2));
-                k += 2;
-                bits <<= 2;
-            }
-            left = left.saturating_sub(16);
+        let (mut n, mut k_sum, mut kk_sum) = (0i64, 0i64, 0i64);
+        for i in (0..PAIRS).step_by(stride as usize) {
+            // Edge of pair i (bit boundary 2i + 1), its first bit at line bit 2i.
+            let k = 2 * i + 1;
+            let at = start.wrapping_add(ratio.wrapping_mul(k));
+            let level = (pattern >> (124 - 2 * i)) & 1 == 1;
+            // Window: the samples from `at - half` (rounded up) to before `at + half`.
+            let lo = at.wrapping_sub(half).wrapping_add((1 << FRAC) - 1) >> FRAC;
+            let hi = at.wrapping_add(half).wrapping_add((1 << FRAC) - 1) >> FRAC;
+            let width = hi.wrapping_sub(lo) & 0xFFFF;
+            let (j, s) = (lo >> 5, lo & 31);
+            let x = ring.window(j) << s | (ring.window(j.wrapping_add(1)) >> 1) >> (31 - s);
+            // Samples at the pair's first level, counted from the window's start.
+            let first = if level { u32::MAX } else { 0 };
+            let before = (x ^ first).leading_zeros().min(width);
+            let edge = (lo.wrapping_add(before) << FRAC).wrapping_sub(HALF);
+            let r = edge.wrapping_sub(at) as i32;
+            r_sum = r_sum.wrapping_add(r);
+            kr_sum = kr_sum.wrapping_add((k as i32).wrapping_mul(r));
+            n += 1;
+            k_sum += i64::from(k);
+            kk_sum += i64::from(k * k);
         }
-        points(r_sum, kr_sum)
+        Points {
+            n,
+            k: k_sum,
+            kk: kk_sum,
+            r: i64::from(r_sum),
+            kr: i64::from(kr_sum),
+        }
     }
 
     /// Samples of a line that idles high, then sends `pattern` from `t0` (samples)
@@ -513,6 +615,18 @@ pub(super) mod tests {
         );
     }
 
+    /// Every pair ([`mid_pairs`]) and every other one ([`even_mid_pairs`]).
+    const STRIDES: [u32; 2] = [1, 2];
+
+    /// [`mid_pairs`] at `stride` 1, else [`even_mid_pairs`].
+    fn strided(stride: u32, ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
+        if stride == 1 {
+            mid_pairs(ring, start, ratio, pattern)
+        } else {
+            even_mid_pairs(ring, start, ratio, pattern)
+        }
+    }
+
     /// A ring holding `words` from stream word 0.
     fn ring_with(words: &[u16]) -> Ring {
         let mut ring = Ring::default();
@@ -530,10 +644,12 @@ pub(super) mod tests {
             pattern in any::<u128>(),
         ) {
             let ring = ring_with(&words);
-            prop_assert_eq!(
-                mid_pairs(&ring, start, ratio, pattern),
-                mid_pairs_reference(&ring, start, ratio, pattern)
-            );
+            for stride in STRIDES {
+                prop_assert_eq!(
+                    strided(stride, &ring, start, ratio, pattern),
+                    mid_pairs_reference(&ring, start, ratio, pattern, stride)
+                );
+            }
         }
 
         #[test]
@@ -550,8 +666,12 @@ pub(super) mod tests {
             let pattern = frame.encode();
             let ring = ring_of(pattern, t0, ratio, |_| 0.0);
             let (start, ratio) = (q(t0 + off) as u32, q(ratio * (1.0 + rate)));
-            let p = mid_pairs(&ring, start, ratio, pattern);
-            prop_assert_eq!(p, mid_pairs_reference(&ring, start, ratio, pattern));
+            for stride in STRIDES {
+                prop_assert_eq!(
+                    strided(stride, &ring, start, ratio, pattern),
+                    mid_pairs_reference(&ring, start, ratio, pattern, stride)
+                );
+            }
         }
     }
 
@@ -567,11 +687,14 @@ pub(super) mod tests {
             for base in [0u32, 1_024 - 300, 1_024 - 40, 65_536 - 300, 65_536 - 5] {
                 for frac in [0u32, 1, 0x7FFF, 0x8000, 0xFFFF] {
                     let start = (base << FRAC).wrapping_add(frac);
-                    for pattern in [0, u128::MAX, pattern(), !pattern()] {
+                    for (pattern, stride) in [0, u128::MAX, pattern(), !pattern()]
+                        .into_iter()
+                        .flat_map(|p| STRIDES.map(|s| (p, s)))
+                    {
                         assert_eq!(
-                            mid_pairs(&ring, start, ratio, pattern),
-                            mid_pairs_reference(&ring, start, ratio, pattern),
-                            "start {start:#x} ratio {ratio:#x}"
+                            strided(stride, &ring, start, ratio, pattern),
+                            mid_pairs_reference(&ring, start, ratio, pattern, stride),
+                            "start {start:#x} ratio {ratio:#x} stride {stride}"
                         );
                     }
                 }

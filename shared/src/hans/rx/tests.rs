@@ -657,3 +657,4 @@ mod ring;
 mod rounding;
 mod steady;
 mod tail;
+mod young;

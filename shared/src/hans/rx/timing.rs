@@ -16,9 +16,11 @@
 //! least-squares line ([`super::phase`]) through the start edges **and the 61
 //! mid-pair edges of every frame that verified** ([`Timing::refine`]): after two
 //! or three verified frames phase and rate are known to a few hundredths of a
-//! sample. Then the alpha-beta filter takes over at its settled gains (on the M7
-//! the 61 edges cost ~1 700 instructions a frame and the fit's 64-bit divisions
-//! ~320, which only a young lock pays; `cargo xtask profile "young lock"`). Its
+//! sample; from the fourth frame on ([`DENSE`]) every other pair's edge is enough.
+//! Then the alpha-beta filter takes over at its settled gains (on the M7 the 61
+//! edges cost ~1 700 instructions a frame, the 31 even ones ~930, and the fit's
+//! 64-bit divisions ~340, which only a young lock pays; `cargo xtask profile
+//! "young lock"`). Its
 //! phase measurement is the start edge blended with the mean of the 8 mid-pair
 //! edges that every published frame's tail confirmation measures anyway
 //! ([`super::confirm::tail`], [`Timing::tail`]): on the start edge alone its phase
@@ -28,8 +30,8 @@
 //! (README "Known limits").
 
 use super::hunt::Found;
-use super::phase::{Correction, Fit, Points};
-use super::ring::{diff, FRAC};
+use super::phase::{self, Correction, Fit, Points};
+use super::ring::{diff, Ring, FRAC};
 use crate::hans::FRAME_BITS;
 
 /// Start edges whose least-squares line fit the settled alpha-beta filter's gains
@@ -56,6 +58,14 @@ pub const YOUNG: i32 = 32;
 pub const RECENTRE: i32 = 2;
 // `Timing::advance` weighs the tail's sum as that of 8 edges.
 const _: () = assert!(super::confirm::TAIL_PAIRS == 8);
+/// Points a young fit holds before its verified frames are measured on every other
+/// pair only ([`super::phase::even_mid_pairs`], half the cost): the hunt's frame
+/// and three verified frames on all 61 pairs (62 points a frame with its start
+/// edge). The first frames set the phase the lock publishes with; later ones
+/// mostly add lever arm for the rate, where the line through 31 edges a frame
+/// over the young frames hands the filter a rate ~15 % less precise (rms) than
+/// through 61 (`tests::young`).
+pub const DENSE: i64 = 4 * 62;
 /// Bits in a frame as the fixed-point multiplier.
 const BITS: i32 = FRAME_BITS as i32;
 
@@ -282,6 +292,24 @@ impl Timing {
         !matches!(self.stage, Stage::Settled)
     }
 
+    /// [`Timing::refine`] on the mid-pair edges of the verified frame that starts
+    /// at `start` (Q16, the channel's own start edge) on `ring`, `pattern` its
+    /// pattern ([`phase::mid_pairs`]): every pair's until a young fit holds
+    /// [`DENSE`] points, then every other pair's; every pair's while re-centring
+    /// (its few verified frames re-measure a phase the coast drifted). Out of
+    /// line: a young lock's step, kept out of the settled frame's code.
+    #[inline(never)]
+    pub fn learn(&mut self, ring: &Ring, start: u32, pattern: u128) {
+        let ratio = self.ratio;
+        let points = match &self.stage {
+            Stage::Young { fit, .. } if fit.points() >= DENSE => {
+                phase::even_mid_pairs(ring, start, ratio, pattern)
+            }
+            _ => phase::mid_pairs(ring, start, ratio, pattern),
+        };
+        self.refine(&points);
+    }
+
     /// Adds the edges `p` measured on the current frame (against this timing plus
     /// the channel's delay) to a young lock's fit and moves the timing to the new
     /// line. Points that would move the phase by half a bit or more, or the period
@@ -457,6 +485,51 @@ mod tests {
         let (mut with, mut without) = (young(Some(8 << FRAC)), young(None));
         assert!(with.advance(1 << FRAC) && without.advance(1 << FRAC));
         assert_eq!((with.start, with.period), (without.start, without.period));
+    }
+
+    #[test]
+    fn a_young_fit_takes_every_other_pair_once_it_holds_a_few_frames() {
+        use crate::hans::Frame;
+        // A frame 0.3 sample late at 3.1 samples a bit against a timing at 3.
+        let pattern = Frame::new(0x5A3C1, 0xF0F0F, 0x12345).unwrap().encode();
+        let ring = phase::tests::ring_of_edges(pattern, |k| 20.3 + 3.1 * k as f64);
+        let young = |fit| {
+            let mut t = Timing::new(3 << FRAC);
+            t.stage = Stage::Young { frames: 3, fit };
+            t.start = 20 << FRAC;
+            t
+        };
+        let mut thick = Fit::lock();
+        thick.add(&Points::start_edge(0));
+        for _ in 0..DENSE {
+            thick.add(&Points::start_edge(0));
+        }
+        for (fit, every) in [(Fit::lock(), true), (thick, false)] {
+            let (mut learned, mut refined) = (young(fit), young(fit));
+            learned.learn(&ring, learned.start, pattern);
+            refined.refine(&if every {
+                phase::mid_pairs(&ring, refined.start, refined.ratio, pattern)
+            } else {
+                phase::even_mid_pairs(&ring, refined.start, refined.ratio, pattern)
+            });
+            assert_eq!(learned, refined, "every pair: {every}");
+            assert_ne!(learned, young(fit), "every pair: {every}");
+        }
+        // Re-centring after a coast: every pair, however many points.
+        let mut learned = young(thick);
+        learned.stage = Stage::Recentre {
+            owed: RECENTRE,
+            fit: thick,
+        };
+        let mut refined = learned;
+        learned.learn(&ring, learned.start, pattern);
+        refined.refine(&phase::mid_pairs(
+            &ring,
+            refined.start,
+            refined.ratio,
+            pattern,
+        ));
+        assert_eq!(learned, refined);
     }
 
     #[test]

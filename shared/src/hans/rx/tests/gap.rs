@@ -11,15 +11,15 @@ const DMA_HALF: usize = 512;
 
 /// A modelled line: frames sent back to back, sampled at `ratio` samples per bit
 /// from `phase` bits into the stream, every bit edge moved by up to `jitter` bits.
-struct Stream {
+pub(super) struct Stream {
     sent: Vec<Frame>,
-    words: Vec<u16>,
+    pub(super) words: Vec<u16>,
     ratio: f64,
-    phase: f64,
+    pub(super) phase: f64,
 }
 
 impl Stream {
-    fn new(n: usize, seed: u32, ratio: f64, phase: f64, jitter: f64) -> Stream {
+    pub(super) fn new(n: usize, seed: u32, ratio: f64, phase: f64, jitter: f64) -> Stream {
         let sent = frames(n, seed);
         let bits = line_bits(&sent);
         let words = if jitter == 0.0 {
