@@ -744,11 +744,12 @@ impl HansRx {
         let mut confirmed = 0u8;
         // The reference's own tail deviation, when it confirmed the frame itself:
         // the settled timing's phase measurement (`Timing::advance`).
-        let tail = self.confirmed(reference, start, ref_delay, ratio, ref_pattern);
+        let measured = self.confirmed(reference, start, ref_delay, ratio, ref_pattern);
+        let tail = self.passed(measured);
         self.timing.tail = tail;
         if tail.is_some()
             || bits(same & !(1 << reference)).any(|n| {
-                self.confirmed(n, start, delay(n), ratio, ref_pattern)
+                self.passed(self.confirmed(n, start, delay(n), ratio, ref_pattern))
                     .is_some()
             })
             || self.rephased(ref_pattern)
@@ -757,10 +758,18 @@ impl HansRx {
         }
         for n in bits(differ) {
             if let Some(&p) = patterns.get(n) {
-                if self.confirmed(n, start, delay(n), ratio, p).is_some() {
+                if self
+                    .passed(self.confirmed(n, start, delay(n), ratio, p))
+                    .is_some()
+                {
                     confirmed |= 1 << n;
                 }
             }
+        }
+        // The reference's far tail edges go into the line's record after every
+        // check of this frame used the record as it was (`confirm::excursion`).
+        if let (Some(t), true) = (measured, self.timing.settled()) {
+            self.timing.count_far(t.far);
         }
         // A young lock decodes and tracks, but publishes nothing yet (acquisition,
         // see `timing::SETTLED`), nor does a coasted one before a verified frame
@@ -853,9 +862,9 @@ impl HansRx {
     /// one channel of those that matched the reference suffices for all of them:
     /// they hold its samples at every centre (shifted by whole samples), so edges
     /// where one member's timing puts them vouch for the pattern they share.
-    /// Returns `None` when unconfirmed, else the tail's summed deviation
-    /// ([`confirm::tail`]; 0 before the lock has settled, when it is not
-    /// measured): the phase measurement `Timing::advance` blends in.
+    /// Returns `None` when unconfirmed, else the tail ([`confirm::tail`]; its
+    /// sum 0 and no far edges before the lock has settled, when it is not
+    /// measured), still to pass [`HansRx::passed`].
     fn confirmed(
         &self,
         n: usize,
@@ -863,7 +872,7 @@ impl HansRx {
         delay: i32,
         ratio: i32,
         pattern: u128,
-    ) -> Option<i32> {
+    ) -> Option<confirm::Tail> {
         let ring = self.rings.get(n)?;
         let w = confirm_window(ratio);
         let head = start.wrapping_add(delay as u32);
@@ -876,8 +885,17 @@ impl HansRx {
         } else if self.timing.settled() {
             confirm::tail(ring, head, ratio, pattern)
         } else {
-            Some(0)
+            Some(confirm::Tail { sum: 0, far: 0 })
         }
+    }
+
+    /// The summed deviation of a tail [`HansRx::confirmed`] found, unless its
+    /// far edges make it a short excursion of the line's phase on a line whose
+    /// recent tails had none ([`confirm::excursion`]): the phase measurement
+    /// `Timing::advance` blends in.
+    fn passed(&self, tail: Option<confirm::Tail>) -> Option<i32> {
+        tail.filter(|t| !confirm::excursion(t.far, self.timing.clean()))
+            .map(|t| t.sum)
     }
 
     /// After the reference's frame (read at the timing and its delay as
@@ -935,7 +953,9 @@ impl HansRx {
         // A shift of zero would be the reading that failed.
         let ok = d1 != 0
             && again == pattern
-            && self.confirmed(n, start, shifted, ratio, pattern).is_some();
+            && self
+                .passed(self.confirmed(n, start, shifted, ratio, pattern))
+                .is_some();
         if ok {
             self.timing.rephase(d1);
         }
