@@ -408,7 +408,7 @@ enum Must {
     Measure,
 }
 
-/// The young lock is where jitter costs frames (README "Known limits"): one seed per
+/// The young lock is where jitter costs frames (README "Known limits", docs/engineering-log.md): one seed per
 /// point says little, so this runs many locks per point (each its own frames,
 /// jitter, sampling phase and, for the "±1 %" rows, a random offset within ±1 %)
 /// and prints how many of them lost frames, how many lost any after their first

@@ -553,7 +553,7 @@ fn noisy_hans_channels_that_lose_periods_do_not_recover() {
     }
 }
 
-/// The receiver's start-edge timing disturbed (README "Known limits" history): noise
+/// The receiver's start-edge timing disturbed (docs/engineering-log.md, "Known limits"): noise
 /// bursts and flips over the start pair and stop bits, with an ideal clock and with
 /// +-15 % jitter at +-1 % offset, in every decode mode. Before the receiver confirmed
 /// a frame's timing by its own and its successor's start edge, such runs forwarded

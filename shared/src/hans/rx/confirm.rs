@@ -9,7 +9,7 @@
 //! still passes there when the successor's edge is jittered towards the
 //! prediction, and its centres then lie near bit boundaries: random content whose
 //! complement pairs pass at 2^-n. Small changes to the tracking made the HANS
-//! campaign forward 13 to 14 such frames in 250 000 (README "Known limits").
+//! campaign forward 13 to 14 such frames in 250 000 (README "Known limits", docs/engineering-log.md).
 //!
 //! Every complement pair changes level in its middle (spec "数据传输协议", sender
 //! item 2), so the last [`TAIL_PAIRS`] pairs give that many edges at known bit
@@ -181,7 +181,7 @@ pub const FAR_EDGES: u32 = TAIL_PAIRS / 2;
 /// Why: a whole-bit read of a few pairs over repeated data reads valid pairs
 /// whose edges measure half a bit off less up to a sample, and on only the last
 /// 4 of the 8 checked pairs the tail's mean stays near 0.2 bit, inside
-/// [`tail_window`] (README "Known limits"). At 3x the samples only say which of
+/// [`tail_window`] (README "Known limits", docs/engineering-log.md). At 3x the samples only say which of
 /// three places an edge lies at, so a single edge a sample off is the same
 /// picture on a good line with ±25 % jitter as on a slipped one, and a good
 /// ±25 % line at 3x has 4 and more of 8 such edges on about 1 % of its frames

@@ -851,7 +851,7 @@ impl HansRx {
     /// centres from the first to the last: a false or missing start edge that
     /// moved the tracking, or a phase that drifted or jumped within the frame,
     /// leaves a tail read a bit off, random content whose complement pairs pass at
-    /// 2^-n (README "Known limits"). The start edge follows the stop field and the
+    /// 2^-n (README "Known limits", docs/engineering-log.md). The start edge follows the stop field and the
     /// next falling edge comes two bits later, so no other edge of a good line
     /// lies in either start-edge window. The start edges are checked first: they
     /// are cheaper and fail more often. The tail is checked once the lock has

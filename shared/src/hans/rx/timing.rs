@@ -27,7 +27,7 @@
 //! wandered up to 0.05 bit (0.15 sample at 3x) from the mid-pair edges over a
 //! lock, enough to push a ±25 % jittered tail past its quarter-bit bound; with
 //! the tail the wander is below what 50 frames of tail jitter can resolve
-//! (README "Known limits").
+//! (README "Known limits", docs/engineering-log.md).
 
 use super::hunt::Found;
 use super::phase::{self, Correction, Fit, Points};

@@ -1,5 +1,5 @@
 //! Clean lines sampled within a few hundred ppm of a whole number of samples a
-//! bit (README "Known limits", issue 4): every edge then sits at nearly the same
+//! bit (README "Known limits", docs/engineering-log.md, issue 4): every edge then sits at nearly the same
 //! sub-sample phase, so every measured edge has the same rounding, which steps
 //! by a whole sample each time that phase crosses a sample. A frame whose tail is
 //! measured a sample off its timing at such a step is re-read at the phase its
@@ -27,7 +27,7 @@ fn clean(ratio: f64, phase: f64, hz: u32, mode: Mode, seed: u32) -> (Vec<Frame>,
 /// them as controls, in normal and super mode, at three sampling phases. Before
 /// the re-read (`HansRx::rephased`), 3.00005 to 3.001 lost frames at some or
 /// all phases (3.0001: 331 to 343 of 391 published, 3.0003: 211 to 223, 3.0005:
-/// 103; README "Known limits").
+/// 103; README "Known limits", docs/engineering-log.md).
 #[test]
 fn clean_lines_near_whole_ratios_lose_nothing() {
     let cases = [

@@ -66,7 +66,7 @@ fn a_tail_read_off_its_timing_is_not_published() {
     // At 4x the same excursion can pass: there two bits are eight samples, so
     // every checked edge of a line without jitter is measured with the same
     // rounding, up to half a sample (an eighth of a bit) towards the timing
-    // (README "Known limits").
+    // (README "Known limits", docs/engineering-log.md).
     // 3.0003: within the rounding steps of a line near a whole ratio, which a
     // frame whose edges show one is re-read across (`HansRx::rephased`): the
     // excursion's successor edge is not at the tail's rounding.
@@ -180,7 +180,7 @@ fn short_excursion(
 
 /// Frames not sent that today's receiver publishes on the points of
 /// [`short_tail_excursions_never_publish_a_frame_not_sent`] (ratio, jitter,
-/// pairs, delta, of 24 lines): a known limit (README "Known limits", tail
+/// pairs, delta, of 24 lines): a known limit (README "Known limits", docs/engineering-log.md, tail
 /// excursions), pinned so that no change makes it worse. Four pairs read half a
 /// bit off and more: the pairs a whole bit read turns into other valid pairs
 /// measure their edges half a bit early less up to a sample (a third of a bit at
@@ -276,7 +276,7 @@ fn short_tail_excursions_never_publish_a_frame_not_sent() {
 /// 3x), 7 of 8 such edges put the mean beyond a quarter bit, and the frame
 /// (never sent, on data whose last bits repeat) is rejected. A wider tail
 /// check for jittered good frames (the last 8 pairs' mean up to 5/16 bit when
-/// the last 16's is within a quarter, README "Known limits") published frames
+/// the last 16's is within a quarter, README "Known limits", docs/engineering-log.md) published frames
 /// not sent at 4 of these 12 points (up to 14 of the 24 lines a point), and
 /// the excursion frame at 2 more.
 #[test]
