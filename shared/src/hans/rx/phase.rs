@@ -428,7 +428,7 @@ impl Fit {
 /// short of it by less than `1 + (t + dh) / (dh·(dh - 1)) < 6`
 /// (`a/d < (t + 1)/(dh - 1)`, `dh > 2^15`): a few subtractions finish it. A
 /// quotient below 2^16 always takes this path (`a < 2^16·d < 2^(s + 32)`).
-/// Otherwise the library's 64-bit division (~70 instructions on the M7, ~115
+/// Otherwise the library's 64-bit division (~70 instructions on the M7, ~90
 /// signed). Exact on every input either way (`tests::quotient_is_division`).
 #[derive(Clone, Copy, Debug)]
 struct Divisor {
