@@ -19,8 +19,8 @@
 //! sample; from the fourth frame on ([`DENSE`]) every other pair's edge is enough.
 //! Then the alpha-beta filter takes over at its settled gains (on the M7 the 61
 //! edges cost ~1 700 instructions a frame, the 31 even ones ~930, and the fit's
-//! 64-bit divisions ~340, which only a young lock pays; `cargo xtask profile
-//! "young lock"`). Its
+//! solves ~350 with their 64-bit divisions ([`super::phase`]'s `Divisor`), which
+//! only a young lock pays; `cargo xtask profile "young lock"`). Its
 //! phase measurement is the start edge blended with the mean of the 8 mid-pair
 //! edges that every published frame's tail confirmation measures anyway
 //! ([`super::confirm::tail`], [`Timing::tail`]): on the start edge alone its phase
