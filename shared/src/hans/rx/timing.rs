@@ -463,6 +463,18 @@ mod tests {
         t
     }
 
+    /// A [`coasted`] timing whose lock was lost and found again by the hunt.
+    fn relocked() -> Timing {
+        let mut t = coasted();
+        t.lock(Found {
+            start: 1 << 24,
+            period: 375 << FRAC,
+            fit: Fit::lock(),
+            edges: 2,
+        });
+        t
+    }
+
     #[test]
     fn recentring_waits_for_verified_frames() {
         // Frames after the coast that fail (no mid-pair edges, no `refine`) leave
@@ -570,13 +582,7 @@ mod tests {
         // A coast whose frames all failed, then the lock was lost and the hunt
         // locked again: the new lock counts its young frames as ever (verified or
         // not), it does not wait for the old coast's re-centring.
-        let mut t = coasted();
-        t.lock(Found {
-            start: 1 << 24,
-            period: 375 << FRAC,
-            fit: Fit::lock(),
-            edges: 2,
-        });
+        let mut t = relocked();
         for _ in 2..YOUNG {
             assert!(t.young(), "{t:?}");
             assert!(t.advance(0));
@@ -590,13 +596,7 @@ mod tests {
         // it so, one far edge undoes that for 11 more at least, and a line showing one in
         // every third tail (±25 % jitter at 3x) never gets there. A tail's count
         // weighs at most `FAR_EDGES`, and the rate stays within its type.
-        let mut t = coasted();
-        t.lock(Found {
-            start: 1 << 24,
-            period: 375 << FRAC,
-            fit: Fit::lock(),
-            edges: 2,
-        });
+        let mut t = relocked();
         let clean_after = |t: &mut Timing| {
             (0..40).position(|_| {
                 let clean = t.clean();
