@@ -469,19 +469,22 @@ impl Divisor {
     /// `a / d` (0 for `d` 0).
     #[inline(always)]
     fn unsigned(&self, a: u64) -> u64 {
+        // The library's division: a quotient from ~2^16 on, and `d` 0.
+        let slow = || a.checked_div(self.d).unwrap_or(0);
         let Ok(t) = u32::try_from(a >> self.s) else {
-            return a.checked_div(self.d).unwrap_or(0);
+            return slow();
         };
         let Some(q) = t.checked_div(self.dh) else {
-            return a.checked_div(self.d).unwrap_or(0);
+            return slow();
         };
         let mut q = u64::from(q);
         if self.s == 0 {
             // The divisor is exact.
             return q;
         }
+        // Never short (`q·d ≤ a`, the type docs); kept total all the same.
         let Some(mut r) = a.checked_sub(q.wrapping_mul(self.d)) else {
-            return a / self.d;
+            return slow();
         };
         while r >= self.d {
             q += 1;
