@@ -45,7 +45,7 @@
 //!   gets the exact ratio.
 //! * Backchannel UART (115200 .. 921600 baud): USART kernel 100 MHz. embassy-stm32 0.6
 //!   keeps 16x oversampling whenever BRR fits (RM0433 "USART baud rate generation",
-//!   beside §53.5.20 that the driver cites), so 115200 is
+//!   §48.4, beside the driver-enable part the driver cites), so 115200 is
 //!   100e6 / 868 = 115 207 baud (+0.006 %) and 921600 is 100e6 / 109 = 917 431 baud
 //!   (-0.45 %): well inside an 8N1 link's ~±2 % between both ends, and measured on
 //!   the board by the HIL test `backchannel_de_timing` (it accepts up to 0.5 %).

@@ -6,11 +6,11 @@
 //! documents the choices (no register code of our own):
 //! * `Uart::new_with_de` puts the USART's DE function on the DE pin: the USART itself
 //!   raises DE before the start bit and drops it after the last stop bit
-//!   (CR3.DEM = 1, CR1.DEAT / DEDT, RM0433 §53.5.20 "RS232 hardware flow control and
+//!   (CR3.DEM = 1, CR1.DEAT / DEDT, RM0433 §48.4, "RS232 hardware flow control and
 //!   RS485 driver enable"), so no software timing is involved.
 //! * `UartRx::into_ring_buffered` runs the receive DMA stream circularly into our ring
 //!   (embassy's `RingBufferedUartRx`): bytes are never lost between reads.
-//! * `set_baudrate` rewrites USART_BRR (§53.5.7) at run time (XY3-100 §6 lets the
+//! * `set_baudrate` rewrites USART_BRR (§48.7) at run time (XY3-100 §6 lets the
 //!   controller change the backchannel rate by command).
 //!
 //! Board (README.md, section "Firmware"): one UART per side, so each side runs at its

@@ -27,7 +27,7 @@
 //!    pulse, [`Fs::run`]): every SPI sees the same first edge, so word `i` of every
 //!    ring covers the same 16 samples.
 //! 4. Reading: an overrun (RxFIFO OVR, RM0433 §50.4 error flags, or a DMA ring lap
-//!    by the reader, RM0433 §15.3 circular mode) loses words on one channel only;
+//!    by the reader, RM0433 §15.4, circular mode) loses words on one channel only;
 //!    [`HansLines::read`] reports it and the caller starts a new session from 1.
 //!
 //! The firmware's `hans_in` task and the HIL test `hans_controller_loopback` both

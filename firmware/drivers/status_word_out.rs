@@ -14,7 +14,7 @@
 //! clocked by CLK (external clock mode 1), so neither its update nor a compare event
 //! happens once per edge. The **commutation** event does: with the capture/compare
 //! control bits preloaded (CR2.CCPC = 1) and CR2.CCUS = 1, every rising edge of TRGI
-//! is a COM event (RM0433 §39.4, TIMx_CR2 bits CCPC and CCUS; §39.3, "Six-step PWM
+//! is a COM event (RM0433 §38.4, TIMx_CR2 bits CCPC and CCUS; §38.3, "Six-step PWM
 //! generation"), and DIER.COMDE turns it into a DMA request (DMAMUX1 input 17,
 //! TIM1_COM, §17.3.2). TRGI is ETRF after the ETP inversion, i.e. the falling CLK
 //! edge, the same edge the sampler's trigger request fires on. TIM1 drives no output

@@ -13,10 +13,10 @@
 //!
 //! Register sequence (RM0433 §20 "Extended interrupt and event controller"):
 //! 1. SYSCFG_EXTICRx routes the pin's port to the EXTI line, EXTI_RTSR1 selects the
-//!    rising edge, EXTI_CPUIMR1 unmasks the line (§20.3, done by embassy's
+//!    rising edge, EXTI_CPUIMR1 unmasks the line (§20 registers, done by embassy's
 //!    `ExtiInput::new_blocking`);
 //! 2. the NVIC line is enabled here with our own handler bound through
-//!    `bind_interrupts!` ([`SyncEdgeHandler`]), which clears EXTI_CPUPR1 (§20.6.x,
+//!    `bind_interrupts!` ([`SyncEdgeHandler`]), which clears EXTI_CPUPR1 (§20 registers,
 //!    write 1 to clear) and records the mark.
 //!
 //! Why not `heapless::spsc`: its producer half must be stored somewhere the ISR can

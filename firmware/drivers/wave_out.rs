@@ -7,21 +7,21 @@
 //! stream in circular mode and tells us when a half is free again, so the encoder
 //! writes the next half while the DMA plays the current one (double buffering).
 //!
-//! Register sequence (RM0433 §39 "Advanced-control timers (TIM1/TIM8)", §11 GPIO,
+//! Register sequence (RM0433 §38 "Advanced-control timers (TIM1/TIM8)", §11 GPIO,
 //! §15/§17 DMA/DMAMUX):
 //! 1. Timer clock on and reset (RCC, §8); counter stopped (CR1.CEN = 0).
-//! 2. PSC = 0, ARR = timer clock / tick rate - 1 (§39.3.1 time-base unit): one update
+//! 2. PSC = 0, ARR = timer clock / tick rate - 1 (§38.3, "Time-base unit"): one update
 //!    event per tick. The tick is twice the bit clock (two words per bit).
 //! 3. The ring is pre-filled with the idle word (`OutPinMap::idle`), so whatever the
 //!    DMA plays before the encoder has written anything keeps the lines idle.
 //! 4. DMA stream: memory -> GPIOx_BSRR, 32-bit words (§11.4.7: BSRR is write-only;
 //!    bits 0..15 set, 16..31 reset the pins; a 32-bit write changes all pins of the
 //!    port in the same AHB cycle, so CLK and data edges are simultaneous), circular.
-//! 5. DIER.UDE = 1 (§39.4.4): each update event raises a DMA request (DMAMUX1
+//! 5. DIER.UDE = 1 (§38.4, TIMx_DIER): each update event raises a DMA request (DMAMUX1
 //!    request TIMx_UP, §17.3.2).
 //! 6. Optional status sampler ([`WaveOut::start_status_sampler`], before step 7): CC1
 //!    in output-compare "frozen" mode with CCR1 at the middle of the tick, DIER.CC1DE
-//!    = 1, CR2.CCDS = 0 (§39.4.3: the CC DMA request is sent on the compare event, not
+//!    = 1, CR2.CCDS = 0 (§38.4, TIMx_CR2: the CC DMA request is sent on the compare event, not
 //!    on update). A second stream copies GPIOx_IDR (16-bit, §11.4.5) into a
 //!    [`ReadableRingBuffer`]: one sample per tick.
 //! 7. [`WaveOut::start`]: CR1.CEN = 1. The counter was reset by the UG of step 2, so
@@ -138,7 +138,7 @@ impl core::fmt::Display for WaveError {
 
 /// DMA options for streams whose timing is the line timing: very high priority, so
 /// the other streams on the same controller delay them by at most one transfer
-/// (RM0433 §15.3.3, stream priority arbitration).
+/// (RM0433 §15.4, DMA functional description, "Arbiter").
 pub fn timing_critical() -> TransferOptions {
     let mut options = TransferOptions::default();
     options.priority = Priority::VeryHigh;

@@ -3,18 +3,18 @@
 //! used, all on one port) into a circular `[u16; N]` ring, one sample per bit.
 //!
 //! Deviation from the layout draft, measured against RM0433: the draft counts CLK with
-//! ARR = 0 and uses the update DMA request. RM0433 §39.4.12 (TIMx_ARR) says the counter
+//! ARR = 0 and uses the update DMA request. RM0433 §38.4 (TIMx_ARR) says the counter
 //! is blocked while ARR is 0, so no update would ever happen; with ARR = 1 there would
 //! be one update per *two* edges. Instead the timer's slave-mode controller takes CLK
 //! as its trigger input and the **trigger** DMA request (DIER.TDE) fires on every
 //! active trigger edge. The ring contents are exactly what the layout asks for.
 //!
-//! Register sequence (RM0433 §39 "Advanced-control timers", TIM1):
+//! Register sequence (RM0433 §38 "Advanced-control timers (TIM1/TIM8)", TIM1):
 //! 1. Clock on and reset (RCC, §8), CEN = 0.
 //! 2. SMCR: ETP = 1 (ETR inverted: the falling CLK edge is the active edge), ETPS = /1,
 //!    ETF = 0 (no filter: a filter delays the sample, and the data lines must still be
 //!    stable; the line receivers clean the edges), TS = ETRF, SMS = external clock
-//!    mode 1 (§39.3.20 "Timers and external trigger synchronization": in every slave
+//!    mode 1 (§38.3, "Timers and external trigger synchronization": in every slave
 //!    mode but gated mode each active TRGI edge sets SR.TIF).
 //! 3. ARR = 0xFFFF (the count itself is unused; it only gives a bit counter for
 //!    debugging).

@@ -1632,8 +1632,8 @@ mod tests {
         }
     }
 
-    /// UART7's DE timing as its registers hold it (RM0433 §53.5.20, CR1.DEAT / DEDT in
-    /// sample times; BRR, PRESC and CR1.OVER8 give the bit time, §53.5.7), checked
+    /// UART7's DE timing as its registers hold it (RM0433 §48.4 and §48.7, CR1.DEAT / DEDT in
+    /// sample times; BRR, PRESC and CR1.OVER8 give the bit time), checked
     /// against what `backchannel::config(baud)` asked for. The register values, not
     /// the request, are what the capture is judged by.
     fn uart7_de_setup(baud: u32, capture_hz: u32) -> shared::rs485::Setup {
