@@ -177,7 +177,7 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
 /// [`mid_pairs`], LLVM unrolled them and spilled (~1 030), and with the trip
 /// counts hidden from it the per-word set-up cost as much.
 pub fn even_mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
-    strided(ring, start, ratio, pattern, 2, 31)
+    even_pairs(ring, start, ratio, pattern, 31)
 }
 
 /// [`even_mid_pairs`] before the tail's pairs ([`TAIL_PAIRS`], pairs 53 to 60):
@@ -185,23 +185,21 @@ pub fn even_mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Poi
 /// tail confirmation measured those 8 edges already) they are 35 points of the
 /// young fit for 27 edges ([`super::timing`]).
 pub fn head_mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
-    strided(
+    even_pairs(
         ring,
         start,
         ratio,
         pattern,
-        2,
         (PAIRS - TAIL_PAIRS - 1) / 2 + 1,
     )
 }
 
-/// The `n` pairs 0, `stride`, 2·`stride`, ... (`stride` even and above 0, the
-/// last pair at most pair 60; constants at every call). One loop over them,
-/// their first bits gathered into one word first (the pattern's bits 124, 120,
-/// ... 4, taken every `stride / 2`).
+/// The `n` even pairs 0, 2, ... `2n - 2` (`n` at most 31, a constant at every
+/// call). One loop over them, their first bits gathered into one word first
+/// (the pattern's bits 124, 120, ... 4).
 #[inline(always)]
-fn strided(ring: &Ring, start: u32, ratio: i32, pattern: u128, stride: u32, n: u32) -> Points {
-    let mut edges = PairEdges::new(start, ratio, 0).every(stride);
+fn even_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128, n: u32) -> Points {
+    let mut edges = PairEdges::new(start, ratio, 0).every(2);
     // Bit 31 - j: the first bit of pair 2j, pattern bit 124 - 4j.
     let bits = [
         (pattern >> 96) as u32,
@@ -217,12 +215,12 @@ fn strided(ring: &Ring, start: u32, ratio: i32, pattern: u128, stride: u32, n: u
         let c = edges.count(ring, bits);
         c_sum = c_sum.wrapping_add(c);
         kc_sum = kc_sum.wrapping_add(k.wrapping_mul(c));
-        k = k.wrapping_add(2 * stride);
-        bits <<= stride / 2;
+        k += 4;
+        bits <<= 1;
         // As in `mid_pairs`: keeps this a loop.
         core::hint::black_box(());
     }
-    Geometry::of(stride, n).points(start, ratio, edges.step, c_sum, kc_sum)
+    Geometry::of(2, n).points(start, ratio, edges.step, c_sum, kc_sum)
 }
 
 /// Bits 28, 24, ... 0 of `w` as bits 7, 6, ... 0: the odd ones of each byte
