@@ -14,7 +14,9 @@
 //! hundredths of a sample of phase, a few thousandths of a sample of period) after
 //! a few frames instead of a few hundred. Once the fit holds a few frames of them
 //! it takes every other pair only ([`even_mid_pairs`], [`super::timing::DENSE`]):
-//! later frames mostly add lever arm for the rate, at half the cost.
+//! later frames mostly add lever arm for the rate, at half the cost; the last 8
+//! pairs' edges then come from the tail confirmation, which measured them
+//! already ([`head_mid_pairs`], [`Points::tail`]).
 //!
 //! # The fit in information form
 //! The points are residuals against the current timing line `start + k·ratio`
@@ -36,6 +38,7 @@
 //! [`super::ring::Ring::first_fall`]). An edge outside the window saturates at its
 //! border, so one glitch moves a frame's sum by at most half a bit.
 
+use super::confirm::TAIL_PAIRS;
 use super::ring::{Ring, FRAC, HALF};
 use crate::hans::FRAME_BITS;
 
@@ -83,6 +86,39 @@ impl Points {
             ..Points::default()
         }
     }
+
+    /// The current frame's last [`TAIL_PAIRS`] mid-pair edges as the tail
+    /// confirmation measured them, `sum` their summed deviation (Q16) from the
+    /// timing ([`super::confirm::Tail`]): as many points at their mean bit index,
+    /// each at their mean residual. Only their sum is known, so the fit takes
+    /// the mean's phase and none of the within-tail slope (16 bits of lever arm
+    /// against a young fit's frames of it).
+    pub fn tail(sum: i32) -> Points {
+        // Pair `i`'s edge is bit boundary `2i + 1`; the tail's pairs are the
+        // last `TAIL_PAIRS` of `PAIRS`.
+        const MEAN: i64 = 2 * (PAIRS - TAIL_PAIRS) as i64 + TAIL_PAIRS as i64;
+        const N: i64 = TAIL_PAIRS as i64;
+        let r = i64::from(sum);
+        Points {
+            n: N,
+            k: N * MEAN,
+            kk: N * MEAN * MEAN,
+            r,
+            kr: MEAN * r,
+        }
+    }
+
+    /// These points and `other` together (residuals against the same line,
+    /// bit indices from the same start edge).
+    pub fn and(&self, other: &Points) -> Points {
+        Points {
+            n: self.n + other.n,
+            k: self.k + other.k,
+            kk: self.kk + other.kk,
+            r: self.r + other.r,
+            kr: self.kr + other.kr,
+        }
+    }
 }
 
 /// The 61 mid-pair edges of the frame that starts at `start` (Q16, the channel's
@@ -128,7 +164,7 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
             core::hint::black_box(());
         }
     }
-    Geometry::of(1).points(start, ratio, edges.step, c_sum, kc_sum)
+    Geometry::of(1, PAIRS).points(start, ratio, edges.step, c_sum, kc_sum)
 }
 
 /// [`mid_pairs`] on the even pairs only (0, 2, ... 60: 31 edges spread evenly
@@ -141,6 +177,28 @@ pub fn mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
 /// [`mid_pairs`], LLVM unrolled them and spilled (~1 030), and with the trip
 /// counts hidden from it the per-word set-up cost as much.
 pub fn even_mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
+    even_pairs(ring, start, ratio, pattern, 31)
+}
+
+/// [`even_mid_pairs`] before the tail's pairs ([`TAIL_PAIRS`], pairs 53 to 60):
+/// the 27 pairs 0, 2, ... 52. With [`Points::tail`] of the same frame (the
+/// tail confirmation measured those 8 edges already) they are 35 points of the
+/// young fit for 27 edges ([`super::timing`]).
+pub fn head_mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
+    even_pairs(
+        ring,
+        start,
+        ratio,
+        pattern,
+        (PAIRS - TAIL_PAIRS - 1) / 2 + 1,
+    )
+}
+
+/// The `n` even pairs 0, 2, ... `2n - 2` (`n` at most 31, a constant at every
+/// call). One loop over them, their first bits gathered into one word first
+/// (the pattern's bits 124, 120, ... 4).
+#[inline(always)]
+fn even_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128, n: u32) -> Points {
     let mut edges = PairEdges::new(start, ratio, 0).every(2);
     // Bit 31 - j: the first bit of pair 2j, pattern bit 124 - 4j.
     let bits = [
@@ -153,7 +211,7 @@ pub fn even_mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Poi
     .fold(0u32, |acc, w| acc << 8 | every_fourth(w));
     let (mut c_sum, mut kc_sum) = (0u32, 0u32);
     let (mut k, mut bits) = (1u32, bits);
-    for _ in 0..EVEN.n {
+    for _ in 0..n {
         let c = edges.count(ring, bits);
         c_sum = c_sum.wrapping_add(c);
         kc_sum = kc_sum.wrapping_add(k.wrapping_mul(c));
@@ -162,7 +220,7 @@ pub fn even_mid_pairs(ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Poi
         // As in `mid_pairs`: keeps this a loop.
         core::hint::black_box(());
     }
-    EVEN.points(start, ratio, edges.step, c_sum, kc_sum)
+    Geometry::of(2, n).points(start, ratio, edges.step, c_sum, kc_sum)
 }
 
 /// Bits 28, 24, ... 0 of `w` as bits 7, 6, ... 0: the odd ones of each byte
@@ -176,10 +234,7 @@ fn every_fourth(w: u32) -> u32 {
     x.wrapping_mul(1 << 24 | 1 << 18 | 1 << 12 | 1 << 6) >> 24
 }
 
-/// The even pairs' geometry ([`even_mid_pairs`]).
-const EVEN: Geometry = Geometry::of(2);
-
-/// The pairs 0, `stride`, 2·`stride`, ... 60 that a frame's fit takes (pair `s·j`
+/// The pairs 0, `stride`, 2·`stride`, ... that a frame's fit takes (pair `s·j`
 /// with bit index `k_j = 2·s·j + 1` for `j` = 0..`n`): the sums of their
 /// geometry and of their expected edges' positions.
 struct Geometry {
@@ -196,10 +251,9 @@ struct Geometry {
 }
 
 impl Geometry {
-    /// Every `stride`th pair (a divisor of 60); all 61 at 1: Σk_j = 3 721,
-    /// Σj = 1 830, Σj·k_j = 2·Σj² + Σj = 149 450.
-    const fn of(stride: u32) -> Geometry {
-        let n = (PAIRS - 1) / stride + 1;
+    /// `n` pairs, every `stride`th; all 61 at 1: Σk_j = 3 721, Σj = 1 830,
+    /// Σj·k_j = 2·Σj² + Σj = 149 450.
+    const fn of(stride: u32, n: u32) -> Geometry {
         // Σj and Σj² for j = 0..n.
         let j = n * (n - 1) / 2;
         let jj = (n - 1) * n * (2 * n - 1) / 6;
@@ -508,14 +562,14 @@ pub(super) mod tests {
     const Q: f64 = 65536.0;
 
     /// The per-edge implementation `mid_pairs` replaced (before the sums were split
-    /// into sample counts and closed forms), on every `stride`th pair: it must give
-    /// the same points.
+    /// into sample counts and closed forms), on every `stride`th pair below pair
+    /// `pairs`: it must give the same points.
     fn mid_pairs_reference(
         ring: &Ring,
         start: u32,
         ratio: i32,
         pattern: u128,
-        stride: u32,
+        (stride, pairs): (u32, u32),
     ) -> Points {
         let ratio = ratio as u32;
         let half = ratio / 2;
@@ -523,7 +577,7 @@ pub(super) mod tests {
         // ratio up to 4.2), so the sums fit i32: 61 * 2^18 and 3 721 * 2^18 < 2^31.
         let (mut r_sum, mut kr_sum) = (0i32, 0i32);
         let (mut n, mut k_sum, mut kk_sum) = (0i64, 0i64, 0i64);
-        for i in (0..PAIRS).step_by(stride as usize) {
+        for i in (0..pairs).step_by(stride as usize) {
             // Edge of pair i (bit boundary 2i + 1), its first bit at line bit 2i.
             let k = 2 * i + 1;
             let at = start.wrapping_add(ratio.wrapping_mul(k));
@@ -694,16 +748,41 @@ pub(super) mod tests {
         );
     }
 
-    /// Every pair ([`mid_pairs`]) and every other one ([`even_mid_pairs`]).
-    const STRIDES: [u32; 2] = [1, 2];
+    /// Every pair ([`mid_pairs`]), every other one ([`even_mid_pairs`]), and
+    /// every other one before the tail ([`head_mid_pairs`]): stride and the
+    /// pairs below which they are taken.
+    const STRIDES: [(u32, u32); 3] = [(1, PAIRS), (2, PAIRS), (2, PAIRS - TAIL_PAIRS)];
 
-    /// [`mid_pairs`] at `stride` 1, else [`even_mid_pairs`].
-    fn strided(stride: u32, ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
-        if stride == 1 {
-            mid_pairs(ring, start, ratio, pattern)
-        } else {
-            even_mid_pairs(ring, start, ratio, pattern)
+    /// The function that takes the pairs of `which` (one of [`STRIDES`]).
+    fn strided(which: (u32, u32), ring: &Ring, start: u32, ratio: i32, pattern: u128) -> Points {
+        match which {
+            (1, _) => mid_pairs(ring, start, ratio, pattern),
+            (2, PAIRS) => even_mid_pairs(ring, start, ratio, pattern),
+            _ => head_mid_pairs(ring, start, ratio, pattern),
         }
+    }
+
+    #[test]
+    fn the_tail_counts_as_its_pairs_at_their_mean() {
+        // Every edge 0.3 sample after the timing's at a whole-sample ratio: each
+        // of the tail's pairs has the same residual, so its points are the pairs' own
+        // but for Σk² (all at the mean bit index: no within-tail slope).
+        let ring = ring_of(pattern(), 20.3, 3.0, |_| 0.0);
+        let start = q(20.0) as u32;
+        let Some(tail) = super::super::confirm::tail(&ring, start, q(3.0), pattern()) else {
+            panic!("tail failed");
+        };
+        let points = Points::tail(tail.sum);
+        let all = mid_pairs_reference(&ring, start, q(3.0), pattern(), (1, PAIRS));
+        let head = mid_pairs_reference(&ring, start, q(3.0), pattern(), (1, PAIRS - TAIL_PAIRS));
+        assert_eq!(points.n, all.n - head.n);
+        assert_eq!(points.k, all.k - head.k);
+        assert_eq!(points.r, all.r - head.r);
+        assert_eq!(points.kr, all.kr - head.kr);
+        // Edges at 20.3 + 3k read as 20.5 + 3k (half a sample before the first
+        // sample after them), against a timing at 20 + 3k.
+        assert_eq!(points.r, 8 * i64::from(HALF));
+        assert!(points.kk < all.kk - head.kk);
     }
 
     /// A ring holding `words` from stream word 0.
@@ -842,7 +921,7 @@ pub(super) mod tests {
                         assert_eq!(
                             strided(stride, &ring, start, ratio, pattern),
                             mid_pairs_reference(&ring, start, ratio, pattern, stride),
-                            "start {start:#x} ratio {ratio:#x} stride {stride}"
+                            "start {start:#x} ratio {ratio:#x} pairs {stride:?}"
                         );
                     }
                 }

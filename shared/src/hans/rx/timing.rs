@@ -16,11 +16,15 @@
 //! least-squares line ([`super::phase`]) through the start edges **and the 61
 //! mid-pair edges of every frame that verified** ([`Timing::refine`]): after two
 //! or three verified frames phase and rate are known to a few hundredths of a
-//! sample; from the fourth frame on ([`DENSE`]) every other pair's edge is enough.
+//! sample; from the fourth frame on ([`DENSE`]) every other pair's edge is enough,
+//! the last 8 pairs' taken from the tail confirmation, which measured them
+//! already ([`super::phase::Points::tail`]), and the frame's start edge is
+//! solved with them (one solve a frame, [`Timing::advance`]).
 //! Then the alpha-beta filter takes over at its settled gains (on the M7 the 61
-//! edges cost ~1 700 instructions a frame, the 31 even ones ~930, and the fit's
-//! solves ~350 with their 64-bit divisions ([`super::phase`]'s `Divisor`), which
-//! only a young lock pays; `cargo xtask profile "young lock"`). Its
+//! edges cost ~1 700 instructions a frame, the 27 even ones before the tail
+//! ~800, and the fit's solve ~190 with its 64-bit divisions ([`super::phase`]'s
+//! `Divisor`), which only a young lock pays; `cargo xtask profile "young
+//! lock"`). Its
 //! phase measurement is the start edge blended with the mean of the 8 mid-pair
 //! edges that every published frame's tail confirmation measures anyway
 //! ([`super::confirm::tail`], [`Timing::tail`]): on the start edge alone its phase
@@ -64,7 +68,8 @@ const _: () = assert!(super::confirm::TAIL_PAIRS == 8);
 /// edge). The first frames set the phase the lock publishes with; later ones
 /// mostly add lever arm for the rate, where the line through 31 edges a frame
 /// over the young frames hands the filter a rate ~15 % less precise (rms) than
-/// through 61 (`tests::young`).
+/// through 61 (`tests::young`). From here on a frame's start edge also waits
+/// for its mid-pair edges, so that one solve takes both ([`Timing::advance`]).
 pub const DENSE: i64 = 4 * 62;
 /// Bits in a frame as the fixed-point multiplier.
 const BITS: i32 = FRAME_BITS as i32;
@@ -83,6 +88,12 @@ enum Stage {
         frames: i32,
         /// The fit; its line is the timing.
         fit: Fit,
+        /// The current frame's start edge (its error, Q16) while it waits for
+        /// the frame's mid-pair edges, so that one solve takes both
+        /// ([`Timing::advance`], [`Timing::refine`]); the next advance solves
+        /// it when they do not come. A coast ([`Timing::recentre`]) or a new
+        /// lock drops it: its line is the prediction already.
+        held: Option<i32>,
     },
     /// The young fit again after a coast ([`Timing::recentre`]) until `owed`
     /// more verified frames (1 to [`RECENTRE`]) have re-measured the phase; frames
@@ -158,6 +169,7 @@ impl Timing {
             stage: Stage::Young {
                 frames: 0,
                 fit: Fit::lock(),
+                held: None,
             },
             tail: None,
             rephased: false,
@@ -177,6 +189,7 @@ impl Timing {
         self.stage = Stage::Young {
             frames: found.edges,
             fit: found.fit,
+            held: None,
         };
         self.tail = None;
         self.rephased = false;
@@ -232,14 +245,32 @@ impl Timing {
             err = 0;
         }
         let c = match &mut self.stage {
-            Stage::Young { frames, fit } => {
+            Stage::Young { frames, fit, held } => {
                 fit.next_frame();
-                let c = fit.add(&Points::start_edge(err));
+                let mut edge = Points::start_edge(err);
+                // The frame before did not verify (or its edges were not
+                // taken): its start edge, now a frame back, is solved here.
+                let before = held.take();
+                if let Some(h) = before {
+                    edge = edge.and(&Points::start_edge(h).frame_before());
+                }
                 *frames += 1;
                 if *frames >= YOUNG {
+                    let c = fit.add(&edge);
                     self.stage = Stage::Settled;
+                    c
+                } else if fit.points() >= DENSE && before.is_none() {
+                    // A dense fit: one start edge among its hundreds of points
+                    // moves the line little, so the frame is read on the line
+                    // as it was and its edge waits for the frame's mid-pair
+                    // edges (one solve a frame instead of two; the fit's line
+                    // after them is the same, `tests::young` measured the same
+                    // precision).
+                    *held = Some(err);
+                    Correction::default()
+                } else {
+                    fit.add(&edge)
                 }
-                c
             }
             // A re-centring timing stays young until its verified frames have
             // re-measured the phase ([`RECENTRE`]): the frame count does not move.
@@ -328,16 +359,29 @@ impl Timing {
     /// [`Timing::refine`] on the mid-pair edges of the verified frame that starts
     /// at `start` (Q16, the channel's own start edge) on `ring`, `pattern` its
     /// pattern ([`phase::mid_pairs`]): every pair's until a young fit holds
-    /// [`DENSE`] points, then every other pair's; every pair's while re-centring
-    /// (its few verified frames re-measure a phase the coast drifted). Out of
-    /// line: a young lock's step, kept out of the settled frame's code.
+    /// [`DENSE`] points, then every other pair's, the last 8 as the reference's
+    /// tail measured them ([`Timing::tail`], [`phase::Points::tail`]: 4 edges
+    /// fewer to measure, 4 points more) when it did; every pair's while
+    /// re-centring (its few verified frames re-measure a phase the coast
+    /// drifted). Out of line: a young lock's step, kept out of the settled
+    /// frame's code.
+    ///
+    /// Every fourth pair before the tail (14 edges and the tail's 8) measured
+    /// ~210 instructions a frame less and kept the fit's precision on jittered
+    /// lines (`tests::young`), but on a clean line within a few hundred ppm of 3
+    /// samples a bit the thinner fit followed a rounding step of every edge too
+    /// slowly, and a young lock failed its frames until frame 20
+    /// (`tests::rounding`).
     #[inline(never)]
     pub fn learn(&mut self, ring: &Ring, start: u32, pattern: u128) {
         let ratio = self.ratio;
-        let points = match &self.stage {
-            Stage::Young { fit, .. } if fit.points() >= DENSE => {
-                phase::even_mid_pairs(ring, start, ratio, pattern)
-            }
+        let points = match (&self.stage, self.tail) {
+            (Stage::Young { fit, .. }, tail) if fit.points() >= DENSE => match tail {
+                Some(sum) => {
+                    phase::head_mid_pairs(ring, start, ratio, pattern).and(&Points::tail(sum))
+                }
+                None => phase::even_mid_pairs(ring, start, ratio, pattern),
+            },
             _ => phase::mid_pairs(ring, start, ratio, pattern),
         };
         self.refine(&points);
@@ -354,16 +398,20 @@ impl Timing {
         if self.rephased {
             return;
         }
-        let (Stage::Young { fit, .. } | Stage::Recentre { fit, .. }) = &mut self.stage else {
-            return;
+        let mut none = None;
+        let (fit, held) = match &mut self.stage {
+            Stage::Young { fit, held, .. } => (fit, held),
+            Stage::Recentre { fit, .. } => (fit, &mut none),
+            Stage::Settled => return,
         };
         let mut next = *fit;
-        let c = next.add(p);
+        let c = next.add(&held.map_or(*p, |h| p.and(&Points::start_edge(h))));
         let period = self.period.saturating_add(c.period);
         if c.start.unsigned_abs() < (self.ratio / 2).unsigned_abs()
             && period_ok(self.bounds, period)
         {
             *fit = next;
+            *held = None;
             self.apply(self.start, c);
             self.remeasured();
         }
@@ -516,20 +564,36 @@ mod tests {
         let mut alone = settled(None);
         assert!(blended.advance(-(1 << FRAC)) && alone.advance(-(1 << (FRAC - 3))));
         assert_eq!((blended.start, blended.period), (alone.start, alone.period));
-        // A young lock's fit takes its mid-pair edges itself (`refine`): the tail
-        // is not counted twice.
-        let young = |tail| {
-            let mut t = Timing::new(3 << FRAC);
-            t.stage = Stage::Young {
-                frames: SETTLED,
-                fit: Fit::lock(),
-            };
-            t.tail = tail;
-            t
-        };
+        // A young lock's fit takes its mid-pair edges, the tail's included,
+        // itself (`learn`): the tail is not counted twice.
+        let young = |tail| young(Fit::lock(), SETTLED, tail);
         let (mut with, mut without) = (young(Some(8 << FRAC)), young(None));
         assert!(with.advance(1 << FRAC) && without.advance(1 << FRAC));
         assert_eq!((with.start, with.period), (without.start, without.period));
+    }
+
+    /// A young timing at 3 samples a bit, `frames` into its fit `fit`, its
+    /// current frame at sample 20 and its tail `tail`.
+    fn young(fit: Fit, frames: i32, tail: Option<i32>) -> Timing {
+        let mut t = Timing::new(3 << FRAC);
+        t.stage = Stage::Young {
+            frames,
+            fit,
+            held: None,
+        };
+        t.start = 20 << FRAC;
+        t.tail = tail;
+        t
+    }
+
+    /// A young fit that holds [`DENSE`] points and more.
+    fn thick() -> Fit {
+        let mut thick = Fit::lock();
+        thick.add(&Points::start_edge(0));
+        for _ in 0..DENSE {
+            thick.add(&Points::start_edge(0));
+        }
+        thick
     }
 
     #[test]
@@ -538,43 +602,98 @@ mod tests {
         // A frame 0.3 sample late at 3.1 samples a bit against a timing at 3.
         let pattern = Frame::new(0x5A3C1, 0xF0F0F, 0x12345).unwrap().encode();
         let ring = phase::tests::ring_of_edges(pattern, |k| 20.3 + 3.1 * k as f64);
-        let young = |fit| {
-            let mut t = Timing::new(3 << FRAC);
-            t.stage = Stage::Young { frames: 3, fit };
-            t.start = 20 << FRAC;
-            t
-        };
-        let mut thick = Fit::lock();
-        thick.add(&Points::start_edge(0));
-        for _ in 0..DENSE {
-            thick.add(&Points::start_edge(0));
-        }
-        for (fit, every) in [(Fit::lock(), true), (thick, false)] {
-            let (mut learned, mut refined) = (young(fit), young(fit));
+        let at = 20 << FRAC;
+        let ratio = 3 << FRAC;
+        let tail = super::super::confirm::tail(&ring, at, ratio, pattern).map(|t| t.sum);
+        assert!(tail.is_some());
+        let every = phase::mid_pairs(&ring, at, ratio, pattern);
+        let even = phase::even_mid_pairs(&ring, at, ratio, pattern);
+        let with_tail = |p: Points| p.and(&Points::tail(tail.unwrap_or(0)));
+        let head = with_tail(phase::head_mid_pairs(&ring, at, ratio, pattern));
+        for (fit, frames, tail, points) in [
+            // A thin fit: every pair, with a tail or without.
+            (Fit::lock(), 3, None, every),
+            (Fit::lock(), 3, tail, every),
+            // A dense one: every other pair before the tail and the tail's
+            // edges; without a tail (the frame verified on another channel)
+            // every other pair.
+            (thick(), 3, tail, head),
+            (thick(), YOUNG - 1, tail, head),
+            (thick(), 3, None, even),
+        ] {
+            let (mut learned, mut refined) = (young(fit, frames, tail), young(fit, frames, tail));
             learned.learn(&ring, learned.start, pattern);
-            refined.refine(&if every {
-                phase::mid_pairs(&ring, refined.start, refined.ratio, pattern)
-            } else {
-                phase::even_mid_pairs(&ring, refined.start, refined.ratio, pattern)
-            });
-            assert_eq!(learned, refined, "every pair: {every}");
-            assert_ne!(learned, young(fit), "every pair: {every}");
+            refined.refine(&points);
+            assert_eq!(learned, refined, "{frames} {tail:?} {points:?}");
+            assert_ne!(learned, young(fit, frames, tail), "{frames} {tail:?}");
         }
         // Re-centring after a coast: every pair, however many points.
-        let mut learned = young(thick);
+        let mut learned = young(thick(), 3, tail);
         learned.stage = Stage::Recentre {
             owed: RECENTRE,
-            fit: thick,
+            fit: thick(),
         };
         let mut refined = learned;
         learned.learn(&ring, learned.start, pattern);
-        refined.refine(&phase::mid_pairs(
-            &ring,
-            refined.start,
-            refined.ratio,
-            pattern,
-        ));
+        refined.refine(&every);
         assert_eq!(learned, refined);
+    }
+
+    #[test]
+    fn a_dense_young_fit_solves_once_a_frame() {
+        let q = |v: f64| (v * f64::from(1 << FRAC)) as i32;
+        let p = Points::tail(q(2.4));
+        // The line a fit gives after its next frame's `points`, from `timing`.
+        let solved = |timing: &Timing, fit: Fit, frames: u32, points: Points| {
+            let mut fit = fit;
+            for _ in 0..frames {
+                fit.next_frame();
+            }
+            let c = fit.add(&points);
+            (
+                timing.start.wrapping_add(c.start as u32),
+                timing.period + c.period,
+            )
+        };
+        // A thin fit solves the start edge at once.
+        let mut t = young(Fit::lock(), 3, None);
+        let before = t;
+        assert!(t.advance(q(0.4)));
+        let mut moved = before;
+        moved.start = before.predicted();
+        assert_eq!(
+            (t.start, t.period),
+            solved(&moved, Fit::lock(), 1, Points::start_edge(q(0.4)))
+        );
+        // A dense one reads the frame on the line as it was, and solves the
+        // start edge with the frame's mid-pair edges.
+        let mut t = young(thick(), 3, None);
+        let before = t;
+        assert!(t.advance(q(0.4)));
+        assert_eq!((t.start, t.period), (before.predicted(), before.period));
+        let read = t;
+        t.refine(&p);
+        let both = p.and(&Points::start_edge(q(0.4)));
+        assert_eq!((t.start, t.period), solved(&read, thick(), 1, both));
+        assert_ne!((t.start, t.period), (read.start, read.period));
+        // A frame that did not verify: the next one's start edge is solved with
+        // its edge, a frame back; that frame is read on the moved line.
+        let mut t = young(thick(), 3, None);
+        assert!(t.advance(q(0.4)));
+        let read = t;
+        assert!(t.advance(q(-0.2)));
+        let mut moved = read;
+        moved.start = read.predicted();
+        let both = Points::start_edge(q(-0.2)).and(&Points::start_edge(q(0.4)).frame_before());
+        assert_eq!((t.start, t.period), solved(&moved, thick(), 2, both));
+        // A frame re-read at a rounding step takes no mid-pair edges: its start
+        // edge waits for the next frame.
+        let mut t = young(thick(), 3, None);
+        assert!(t.advance(q(0.4)));
+        t.rephase(q(1.0));
+        let read = t;
+        t.refine(&p);
+        assert_eq!(t, read);
     }
 
     #[test]
