@@ -745,11 +745,11 @@ impl HansRx {
         // The reference's own tail deviation, when it confirmed the frame itself:
         // the settled timing's phase measurement (`Timing::advance`).
         let measured = self.confirmed(reference, start, ref_delay, ratio, ref_pattern);
-        let tail = self.passed(measured);
-        self.timing.tail = tail;
-        if tail.is_some()
+        self.timing.tail = measured.sum;
+        if measured.sum.is_some()
             || bits(same & !(1 << reference)).any(|n| {
-                self.passed(self.confirmed(n, start, delay(n), ratio, ref_pattern))
+                self.confirmed(n, start, delay(n), ratio, ref_pattern)
+                    .sum
                     .is_some()
             })
             || self.rephased(ref_pattern)
@@ -758,18 +758,15 @@ impl HansRx {
         }
         for n in bits(differ) {
             if let Some(&p) = patterns.get(n) {
-                if self
-                    .passed(self.confirmed(n, start, delay(n), ratio, p))
-                    .is_some()
-                {
+                if self.confirmed(n, start, delay(n), ratio, p).sum.is_some() {
                     confirmed |= 1 << n;
                 }
             }
         }
         // The reference's far tail edges go into the line's record after every
         // check of this frame used the record as it was (`confirm::excursion`).
-        if let (Some(t), true) = (measured, self.timing.settled()) {
-            self.timing.count_far(t.far);
+        if let Some(far) = measured.far {
+            self.timing.count_far(far);
         }
         // A young lock decodes and tracks, but publishes nothing yet (acquisition,
         // see `timing::SETTLED`), nor does a coasted one before a verified frame
@@ -862,18 +859,19 @@ impl HansRx {
     /// one channel of those that matched the reference suffices for all of them:
     /// they hold its samples at every centre (shifted by whole samples), so edges
     /// where one member's timing puts them vouch for the pattern they share.
-    /// Returns `None` when unconfirmed, else the tail ([`confirm::tail`]; its
-    /// sum 0 and no far edges before the lock has settled, when it is not
-    /// measured), still to pass [`HansRx::passed`].
-    fn confirmed(
-        &self,
-        n: usize,
-        start: u32,
-        delay: i32,
-        ratio: i32,
-        pattern: u128,
-    ) -> Option<confirm::Tail> {
-        let ring = self.rings.get(n)?;
+    /// A tail within those bounds is still rejected when its far edges make it a
+    /// short excursion of the line's phase on a line whose recent tails had
+    /// (nearly) none ([`confirm::excursion`]); that check is part of the
+    /// confirmation, so every caller gets it. See [`Checked`] for what is
+    /// returned.
+    fn confirmed(&self, n: usize, start: u32, delay: i32, ratio: i32, pattern: u128) -> Checked {
+        const FAILED: Checked = Checked {
+            sum: None,
+            far: None,
+        };
+        let Some(ring) = self.rings.get(n) else {
+            return FAILED;
+        };
         let w = confirm_window(ratio);
         let head = start.wrapping_add(delay as u32);
         let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
@@ -881,21 +879,20 @@ impl HansRx {
             .into_iter()
             .all(|at| start_edge(ring, at, w).is_some());
         if !edges {
-            None
-        } else if self.timing.settled() {
-            confirm::tail(ring, head, ratio, pattern)
+            FAILED
+        } else if !self.timing.settled() {
+            Checked {
+                sum: Some(0),
+                far: None,
+            }
+        } else if let Some(t) = confirm::tail(ring, head, ratio, pattern) {
+            Checked {
+                sum: (!confirm::excursion(t.far, self.timing.clean())).then_some(t.sum),
+                far: Some(t.far),
+            }
         } else {
-            Some(confirm::Tail { sum: 0, far: 0 })
+            FAILED
         }
-    }
-
-    /// The summed deviation of a tail [`HansRx::confirmed`] found, unless its
-    /// far edges make it a short excursion of the line's phase on a line whose
-    /// recent tails had none ([`confirm::excursion`]): the phase measurement
-    /// `Timing::advance` blends in.
-    fn passed(&self, tail: Option<confirm::Tail>) -> Option<i32> {
-        tail.filter(|t| !confirm::excursion(t.far, self.timing.clean()))
-            .map(|t| t.sum)
     }
 
     /// After the reference's frame (read at the timing and its delay as
@@ -954,7 +951,8 @@ impl HansRx {
         let ok = d1 != 0
             && again == pattern
             && self
-                .passed(self.confirmed(n, start, shifted, ratio, pattern))
+                .confirmed(n, start, shifted, ratio, pattern)
+                .sum
                 .is_some();
         if ok {
             self.timing.rephase(d1);
@@ -1341,6 +1339,21 @@ impl HansRx {
         self.late = self.latest();
         self.missing(self.used, sink);
     }
+}
+
+/// What [`HansRx::confirmed`] found for one channel's frame.
+#[derive(Clone, Copy)]
+struct Checked {
+    /// The frame is confirmed, short-excursion check included: its tail's summed
+    /// deviation ([`confirm::Tail::sum`]; 0 before the lock has settled, when the
+    /// tail is not measured), the phase measurement `Timing::advance` blends in.
+    /// `None` when a start edge or the tail failed, or the tail is an excursion.
+    sum: Option<i32>,
+    /// The far edges of a settled lock's tail that passed the bounds of
+    /// [`confirm::tail`], whether or not [`confirm::excursion`] rejected it: what
+    /// the line's record counts for the reference (`Timing::count_far`). `None`
+    /// when no tail was measured.
+    far: Option<u32>,
 }
 
 /// Half-width (Q16 samples) of the windows in which [`HansRx::confirmed`] wants a
