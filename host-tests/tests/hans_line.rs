@@ -676,7 +676,7 @@ fn lock_on(frames: &[Frame], words: &[Vec<u16>], fs: f64, mode: Mode, seed: u64)
 /// (3x), where a clean line within a few hundred ppm of 3 samples a bit loses
 /// good frames from 2.5 % on (rising and falling edges round to samples one
 /// apart, and the tail confirmation and `confirm::stepped` take the mixture
-/// for a phase error); and ±25 % jitter, where 10 % costs a few frames in 10^4
+/// for a phase error); and ±25 % jitter, where 10 % costs a few frames in 10^3
 /// (the asymmetry closes the eye by half its size: a ±25 % line with 10 % is
 /// read as if it had ±30 %, and some young locks fail and relock).
 #[test]
