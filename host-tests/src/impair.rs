@@ -137,6 +137,59 @@ pub fn jitter(
     Ok(())
 }
 
+/// Asymmetric edge delays (duty-cycle distortion, as RS-422 drivers, receivers and
+/// cables make them): every rising edge of the named signals (all if `names` is
+/// empty) arrives `rise_ps` later than it would, relative to the falling edges
+/// (negative: earlier, i.e. the falling edges late by `-rise_ps`). With `rise_ps > 0`
+/// the line is high where it was high both now and `rise_ps` ago, so high pulses
+/// lose `rise_ps` and low ones gain it (a high pulse shorter than that vanishes);
+/// with `rise_ps < 0` it is high where it was high now or `-rise_ps` ago. The
+/// falling edges (rising, for negative `rise_ps`) stay where they were. Deterministic:
+/// no seed.
+pub fn asymmetry(wave: &mut Waveform, names: &[&str], rise_ps: i64) -> Result<(), ImpairError> {
+    for n in names {
+        get_mut(wave, n)?;
+    }
+    let d = rise_ps.unsigned_abs();
+    if d == 0 {
+        return Ok(());
+    }
+    for s in wave.signals_mut() {
+        if !names.is_empty() && !names.contains(&s.name()) {
+            continue;
+        }
+        let original = s.clone();
+        let then = |t: Ps| {
+            t.checked_sub(d)
+                .map_or(original.initial(), |e| original.level_at(e))
+        };
+        // The level can change only where the signal or its copy `d` later does.
+        let mut times: Vec<Ps> = original
+            .changes()
+            .iter()
+            .flat_map(|&(t, _)| [t, t.saturating_add(d)])
+            .collect();
+        times.sort_unstable();
+        times.dedup();
+        let changes: Vec<(Ps, bool)> = times
+            .into_iter()
+            .map(|t| {
+                let (now, before) = (original.level_at(t), then(t));
+                (
+                    t,
+                    if rise_ps > 0 {
+                        now && before
+                    } else {
+                        now || before
+                    },
+                )
+            })
+            .collect();
+        rebuild(s, changes)?;
+    }
+    Ok(())
+}
+
 /// Inter-channel skew: shifts each named signal by its delay in ps (negative = earlier;
 /// times clamp at 0).
 pub fn skew(wave: &mut Waveform, delays: &[(&str, i64)]) -> Result<(), ImpairError> {

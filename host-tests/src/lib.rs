@@ -5,8 +5,8 @@
 //! - [`wave`] — the waveform model (named 1-bit signals on a picosecond axis);
 //! - [`vcd_io`] — VCD captures in, VCD files out;
 //! - [`line`] — waveforms <-> the firmware's DMA buffers, and a serial frame generator;
-//! - [`impair`] — reproducible line impairments (rate offset, jitter, skew, noise,
-//!   stuck/broken channels, clock gaps);
+//! - [`impair`] — reproducible line impairments (rate offset, jitter, asymmetric
+//!   edge delays, skew, noise, stuck/broken channels, clock gaps);
 //! - [`pipeline`] — the whole bridge (receiver -> engine -> transmitter, status back)
 //!   on DMA buffers with simulated time, and its task graph;
 //! - [`sim`] — the `bridge-sim` tool's commands and JSON-lines formats.

@@ -4,8 +4,8 @@
 //!
 //! Checks: every intact frame after lock is recovered, nothing that was not sent is
 //! ever published (and the order is kept), broken channels per mode, ±2 samples of
-//! skew, chunking independence, and the loss-rate limits against rate offset and
-//! jitter (printed with `--nocapture`).
+//! skew, chunking independence, and the loss-rate limits against rate offset,
+//! jitter and asymmetric rising / falling edge delays (printed with `--nocapture`).
 
 use host_tests::impair;
 use host_tests::line::drive::bitstream_to_signal;
@@ -56,6 +56,9 @@ struct Line {
     jitter: f64,
     /// Skew per channel in samples (at fs).
     skew: [f64; 5],
+    /// Rising edges' delay against the falling ones, fraction of a bit (negative:
+    /// the falling edges late), on every channel (`impair::asymmetry`).
+    asym: f64,
 }
 
 /// What may go wrong on one channel.
@@ -83,6 +86,7 @@ fn capture(frames: &[Frame], line: Line, faults: [Fault; 5], seed: u64) -> (Vec<
         let max = (line.jitter * BIT_PS) as u64;
         impair::jitter(&mut wave, &[], max, rng.random()).unwrap();
     }
+    impair::asymmetry(&mut wave, &[], (line.asym * BIT_PS).round() as i64).unwrap();
     let sample_ps = 1e12 / line.fs_hz;
     let delays: Vec<(&str, i64)> = HANS_CHANNELS
         .iter()
@@ -206,6 +210,7 @@ fn every_mode_recovers_every_intact_frame() {
                 offset_pct: offset,
                 jitter: 0.15,
                 skew,
+                asym: 0.0,
             };
             let (words, _) = capture(&frames, line, [Fault::None; 5], k as u64);
             for mode in MODES {
@@ -226,6 +231,7 @@ fn chunking_does_not_matter() {
         offset_pct: 0.4,
         jitter: 0.2,
         skew: [0.0, 1.5, -2.0, 0.7, 2.0],
+        asym: 0.0,
     };
     let faults = [
         Fault::None,
@@ -254,6 +260,7 @@ fn broken(mode: Mode, faults: [Fault; 5], seed: u64) -> (usize, usize) {
         offset_pct: rng.random_range(-1.0..=1.0),
         jitter: 0.15,
         skew: std::array::from_fn(|_| rng.random_range(-2.0..=2.0)),
+        asym: 0.0,
     };
     let (words, _) = capture(&frames, line, faults, seed);
     let (events, _) = receive(&words, fs, mode, seed);
@@ -377,6 +384,7 @@ fn run_lock(fs: f64, offset_pct: f64, jitter: f64, n: usize, seed: u64) -> Lock 
         offset_pct,
         jitter,
         skew: [0.0; 5],
+        asym: 0.0,
     };
     let (words, _) = capture(&frames, line, [Fault::None; 5], seed);
     let words = vec![words[0].clone()];
@@ -554,6 +562,7 @@ fn dropped_halves_are_coasted_across() {
                 offset_pct: offset,
                 jitter: 0.25,
                 skew: std::array::from_fn(|_| rng.random_range(-2.0..=2.0)),
+                asym: 0.0,
             };
             let (words, _) = capture(&frames, line, [Fault::None; 5], rng.random());
             // Frame k starts ~200 ns (a 100 ns line delay, ~100 ns of sampling
@@ -623,4 +632,115 @@ fn dropped_halves_are_coasted_across() {
         coasted <= 3 * runs,
         "{coasted} frames late over {runs} runs"
     );
+}
+
+/// Asymmetries measured (fraction of a bit, rising edges late; negative: falling).
+const ASYMS: [f64; 11] = [
+    0.0, 0.025, -0.025, 0.05, -0.05, 0.1, -0.1, 0.15, -0.15, 0.2, -0.2,
+];
+
+/// Line conditions of [`edge_asymmetry`]'s rows: the rate offset (percent, each
+/// lock a random one within it) and the edge jitter (fraction of a bit). Every
+/// lock also skews the channels within ±2 samples.
+const ASYM_LINES: [(&str, f64, f64); 4] = [
+    // Crystal clocks: within ±0.02 % of nominal, so at 37.5 and 50 MHz within a
+    // few hundred ppm of a whole number of samples a bit (the rounding steps of
+    // `shared::hans::rx::confirm::stepped`).
+    ("±0.02 %", 0.02, 0.0),
+    ("±1 %", 1.0, 0.0),
+    ("±1 %, ±20 %", 1.0, 0.2),
+    ("±1 %, ±25 %", 1.0, 0.25),
+];
+
+/// One lock of `mode` over `n` frames on `line` (`seed` chooses the frames, the
+/// jitter, the sampling phase and the chunking): frames lost after
+/// [`LOCK_FRAMES`], published frames that were never sent.
+fn lock_on(frames: &[Frame], words: &[Vec<u16>], fs: f64, mode: Mode, seed: u64) -> (usize, usize) {
+    let (events, _) = receive(words, fs, mode, seed);
+    score(frames, &published(&events), LOCK_FRAMES)
+}
+
+/// Asymmetric rising / falling edge delays (`impair::asymmetry`, the same on
+/// every channel) against the lines of [`ASYM_LINES`], in normal (one channel)
+/// and super mode (five), at 37.5 / 40 / 50 MHz. Prints the frames lost after
+/// [`LOCK_FRAMES`] over the locks of each point (each lock its own frames,
+/// offset, skew, jitter and sampling phase; the same locks for every asymmetry,
+/// so a column differs from the 0 % one by the asymmetry alone), `!` marking a
+/// point that published a frame not sent (with `--nocapture`).
+///
+/// Asserted: no frame that was not sent, at any point. At 40 MHz (the
+/// firmware's rate) and 50 MHz, up to ±10 % of a bit (8 ns) and ±20 % jitter:
+/// no frame lost beyond the same locks without asymmetry, in both modes
+/// (measured with 32 locks a point: none lost; README "Measured figures").
+/// Measured only, because they lose frames (README "Known limits"): 37.5 MHz
+/// (3x), where a clean line within a few hundred ppm of 3 samples a bit loses
+/// good frames from 2.5 % on (rising and falling edges round to samples one
+/// apart, and the tail confirmation and `confirm::stepped` take the mixture
+/// for a phase error); and ±25 % jitter, where 10 % costs a few frames in 10^3
+/// (the asymmetry closes the eye by half its size: a ±25 % line with 10 % is
+/// read as if it had ±30 %, and some young locks fail and relock).
+#[test]
+fn edge_asymmetry() {
+    const LOCKS: u64 = 4;
+    const N: usize = 80;
+    let scored = N - LOCK_FRAMES - 1;
+    println!(
+        "HANS-100 receiver, rising edges late by a fraction of a bit (negative: falling): frames lost of {LOCKS} locks x {scored} per point"
+    );
+    print!("{:>29} |", "offset, jitter");
+    for a in ASYMS {
+        print!("{:>6.1}%", a * 100.0);
+    }
+    println!();
+    for fs in [37.5e6, 40e6, 50e6] {
+        for (row, &(name, offset, jitter)) in ASYM_LINES.iter().enumerate() {
+            // [mode][asymmetry]: frames lost, wrong frames.
+            let mut lost = [[0usize; ASYMS.len()]; 2];
+            let mut wrong = [[0usize; ASYMS.len()]; 2];
+            for lock in 0..LOCKS {
+                let seed = 1000 * row as u64 + lock;
+                let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5A5A);
+                let frames = random_frames(N, &mut rng);
+                let mut line = Line {
+                    fs_hz: fs,
+                    offset_pct: rng.random_range(-offset..=offset),
+                    jitter,
+                    skew: std::array::from_fn(|_| rng.random_range(-2.0..=2.0)),
+                    asym: 0.0,
+                };
+                for (k, a) in ASYMS.into_iter().enumerate() {
+                    line.asym = a;
+                    let (words, _) = capture(&frames, line, [Fault::None; 5], seed);
+                    for (m, mode) in [Mode::Normal { channel: 1 }, Mode::Super]
+                        .into_iter()
+                        .enumerate()
+                    {
+                        let (l, w) = lock_on(&frames, &words, fs, mode, seed);
+                        lost[m][k] += l;
+                        wrong[m][k] += w;
+                    }
+                }
+            }
+            for (m, mode) in ["normal", "super"].into_iter().enumerate() {
+                print!("{:>5.1} MHz {name:>12} {mode:>6} |", fs / 1e6);
+                for (k, a) in ASYMS.into_iter().enumerate() {
+                    let (l, w) = (lost[m][k], wrong[m][k]);
+                    print!("{l:>6}{}", if w > 0 { '!' } else { ' ' });
+                    let at = format!("{fs} Hz, {name}, {mode}, {a} bit");
+                    assert_eq!(w, 0, "published a frame that was not sent: {at}");
+                    // 3x (37.5 MHz) is measured only (see above).
+                    let held = f64::abs(a) <= 0.1 && jitter <= 0.2 && fs != 37.5e6;
+                    if held {
+                        assert!(
+                            l <= lost[m][0],
+                            "{at}: {l} frames lost, {} without asymmetry",
+                            lost[m][0]
+                        );
+                    }
+                }
+                println!();
+            }
+        }
+    }
+    println!("(no wrong frame at any point)");
 }

@@ -166,6 +166,61 @@ fn stuck_and_gap() {
     assert_eq!(xy2_port_words(&g, &PINS).unwrap().len(), 5 * 20);
 }
 
+#[test]
+fn asymmetry_moves_one_kind_of_edge() {
+    let clean = xy2_wave();
+    for rise in [60_000i64, -60_000] {
+        let mut w = clean.clone();
+        impair::asymmetry(&mut w, &[roles::X], rise).unwrap();
+        assert_eq!(
+            w.get(roles::CLK),
+            clean.get(roles::CLK),
+            "only the named signal"
+        );
+        let (a, b) = (clean.get(roles::X).unwrap(), w.get(roles::X).unwrap());
+        assert!(strictly_ordered(b));
+        // Every pulse is longer than 60 ns: the same edges, the rising ones
+        // `rise` later (positive) or the falling ones `-rise` later (negative).
+        assert_eq!(a.changes().len(), b.changes().len());
+        for (&(ta, la), &(tb, lb)) in a.changes().iter().zip(b.changes()) {
+            assert_eq!(la, lb);
+            let moved = if la == (rise > 0) {
+                rise.unsigned_abs()
+            } else {
+                0
+            };
+            assert_eq!(tb, ta + moved, "rise {rise}, edge at {ta}");
+        }
+        // Deterministic.
+        let mut again = clean.clone();
+        impair::asymmetry(&mut again, &[roles::X], rise).unwrap();
+        assert_eq!(again, w);
+    }
+    // A pulse shorter than the asymmetry vanishes instead of turning round.
+    let mut w = Waveform::new();
+    let s = Signal::from_changes(
+        "d",
+        false,
+        [(100, true), (130, false), (500, true), (900, false)],
+    );
+    w.insert(s.unwrap());
+    impair::asymmetry(&mut w, &[], 50).unwrap();
+    assert_eq!(w.get("d").unwrap().changes(), &[(550, true), (900, false)]);
+    let mut w = Waveform::new();
+    let s = Signal::from_changes("d", true, [(100, false), (130, true), (500, false)]);
+    w.insert(s.unwrap());
+    impair::asymmetry(&mut w, &[], -50).unwrap();
+    assert_eq!(w.get("d").unwrap().changes(), &[(550, false)]);
+    // Nothing moves at 0; an unknown name is an error.
+    let mut w = clean.clone();
+    impair::asymmetry(&mut w, &[], 0).unwrap();
+    assert_eq!(w, clean);
+    assert!(matches!(
+        impair::asymmetry(&mut w, &["nope"], 1),
+        Err(ImpairError::MissingSignal { .. })
+    ));
+}
+
 proptest! {
     #[test]
     fn random_impairments_keep_signals_well_formed(seed in any::<u64>(), ppm in -5000.0f64..5000.0,
@@ -174,6 +229,7 @@ proptest! {
         impair::rate_offset_ppm(&mut w, ppm).unwrap();
         impair::jitter(&mut w, &[], jit, seed).unwrap();
         impair::skew(&mut w, &[(roles::X, skew)]).unwrap();
+        impair::asymmetry(&mut w, &[], skew / 2).unwrap();
         impair::noise_burst(&mut w, roles::SYNC, (0, 60_000_000), 10, 100_000, seed).unwrap();
         for s in w.signals() {
             prop_assert!(strictly_ordered(s));

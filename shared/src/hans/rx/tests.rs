@@ -25,14 +25,30 @@ fn line_bits(frames: &[Frame]) -> Vec<bool> {
 /// Samples `bits` at `ratio` samples per bit starting `phase` bits into the stream,
 /// packed 16 to a word, MSB first (only whole words).
 fn oversample(bits: &[bool], ratio: f64, phase: f64) -> Vec<u16> {
+    oversample_asym(bits, ratio, phase, 0.0)
+}
+
+/// [`oversample`] with every rising edge `rise` bits late against the falling
+/// ones (negative: the falling edges `-rise` late; below a bit either way).
+fn oversample_asym(bits: &[bool], ratio: f64, phase: f64, rise: f64) -> Vec<u16> {
     let samples = ((bits.len() as f64 - phase) * ratio) as usize;
+    let level = |t: f64| {
+        let b = t as usize;
+        let now = bits.get(b).copied().unwrap_or(true);
+        let before = b.checked_sub(1).and_then(|p| bits.get(p)).copied();
+        // Within `|rise|` of its start, a bit whose boundary is a delayed edge
+        // still holds the level before it.
+        match before {
+            Some(was) if was != now && t - (b as f64) < rise.abs() && now == (rise > 0.0) => was,
+            _ => now,
+        }
+    };
     let mut words = Vec::new();
     for w in 0..samples / 16 {
         let mut word = 0u16;
         for k in 0..16 {
             let t = phase + (w * 16 + k) as f64 / ratio;
-            let bit = bits.get(t as usize).copied().unwrap_or(true);
-            word = word << 1 | u16::from(bit);
+            word = word << 1 | u16::from(level(t));
         }
         words.push(word);
     }
