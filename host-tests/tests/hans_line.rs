@@ -652,14 +652,6 @@ const ASYM_LINES: [(&str, f64, f64); 4] = [
     ("±1 %, ±25 %", 1.0, 0.25),
 ];
 
-/// One lock of `mode` over `n` frames on `line` (`seed` chooses the frames, the
-/// jitter, the sampling phase and the chunking): frames lost after
-/// [`LOCK_FRAMES`], published frames that were never sent.
-fn lock_on(frames: &[Frame], words: &[Vec<u16>], fs: f64, mode: Mode, seed: u64) -> (usize, usize) {
-    let (events, _) = receive(words, fs, mode, seed);
-    score(frames, &published(&events), LOCK_FRAMES)
-}
-
 /// Asymmetric rising / falling edge delays (`impair::asymmetry`, the same on
 /// every channel) against the lines of [`ASYM_LINES`], in normal (one channel)
 /// and super mode (five), at 37.5 / 40 / 50 MHz. Prints the frames lost after
@@ -715,7 +707,8 @@ fn edge_asymmetry() {
                         .into_iter()
                         .enumerate()
                     {
-                        let (l, w) = lock_on(&frames, &words, fs, mode, seed);
+                        let (events, _) = receive(&words, fs, mode, seed);
+                        let (l, w) = score(&frames, &published(&events), LOCK_FRAMES);
                         lost[m][k] += l;
                         wrong[m][k] += w;
                     }

@@ -10,15 +10,40 @@ use super::*;
 /// Frames sent per run.
 const FRAMES: usize = 400;
 
-/// Runs `FRAMES` clean frames sampled at `ratio` samples a bit from `phase`
-/// bits, fed in 64-word chunks (as the firmware does) to a receiver configured
-/// for `hz`; returns the frames sent and those published.
-fn clean(ratio: f64, phase: f64, hz: u32, mode: Mode, seed: u32) -> (Vec<Frame>, Vec<Frame>) {
-    let sent = frames(FRAMES, seed);
-    let words = oversample(&line_bits(&sent), ratio, phase);
-    let mut rx = HansRx::new(hz, mode).unwrap();
-    let got = published(&run(&mut rx, &words, 64));
-    (sent, got)
+/// One clean line: `n` frames sampled at `ratio` samples a bit from `phase`
+/// bits, every rising edge `rise` bits late against the falling ones
+/// ([`oversample_asym`]; 0: symmetric), fed in 64-word chunks (as the firmware
+/// does) to a receiver configured for `hz`.
+struct Clean {
+    ratio: f64,
+    phase: f64,
+    rise: f64,
+    hz: u32,
+    n: usize,
+    seed: u32,
+}
+
+impl Clean {
+    /// Runs the line; returns the frames sent and the index in them of every
+    /// frame published. Panics (naming `at`) if a published frame was not sent,
+    /// or not after the one published before it.
+    fn run(&self, mode: Mode, at: &str) -> (Vec<Frame>, Vec<usize>) {
+        let sent = frames(self.n, self.seed);
+        let words = oversample_asym(&line_bits(&sent), self.ratio, self.phase, self.rise);
+        let mut rx = HansRx::new(self.hz, mode).unwrap();
+        let got = published(&run(&mut rx, &words, 64));
+        let mut index = Vec::new();
+        for f in &got {
+            let from = index.last().map_or(0, |&i| i + 1);
+            let i = sent[from..].iter().position(|s| s == f);
+            assert!(
+                i.is_some(),
+                "{at}: published a frame not sent (after {index:?})"
+            );
+            index.push(from + i.unwrap_or(0));
+        }
+        (sent, index)
+    }
 }
 
 /// Every sent frame after the first lock is published, in order, and nothing
@@ -51,19 +76,17 @@ fn clean_lines_near_whole_ratios_lose_nothing() {
     for (ratio, hz) in cases {
         for (k, phase) in [0.0, 0.37, 0.81].into_iter().enumerate() {
             for mode in [Mode::Normal { channel: 1 }, Mode::Super] {
-                let (sent, got) = clean(ratio, phase, hz, mode, 11 + k as u32);
                 let at = format!("{ratio} {phase} {mode:?}");
-                // Index in `sent` of every published frame: each one sent, in order.
-                let mut index = Vec::new();
-                for f in &got {
-                    let from = index.last().map_or(0, |&i| i + 1);
-                    let i = sent[from..].iter().position(|s| s == f);
-                    assert!(
-                        i.is_some(),
-                        "{at}: published a frame not sent (after {index:?})"
-                    );
-                    index.push(from + i.unwrap_or(0));
-                }
+                let line = Clean {
+                    ratio,
+                    phase,
+                    rise: 0.0,
+                    hz,
+                    n: FRAMES,
+                    seed: 11 + k as u32,
+                };
+                let (sent, index) = line.run(mode, &at);
+                let got = index.len();
                 let first = index.first().copied().unwrap_or(usize::MAX);
                 if first > LOCK {
                     short.push(format!("{at}: first published is frame {first}"));
@@ -71,9 +94,9 @@ fn clean_lines_near_whole_ratios_lose_nothing() {
                 }
                 // All after the first, but the last (its successor's edge is cut).
                 let expect = sent.len() - first - 1;
-                eprintln!("{at}: {} of {expect}", got.len());
-                if got.len() < expect {
-                    short.push(format!("{at}: {} of {expect}", got.len()));
+                eprintln!("{at}: {got} of {expect}");
+                if got < expect {
+                    short.push(format!("{at}: {got} of {expect}"));
                 }
             }
         }
@@ -99,24 +122,22 @@ fn asymmetric_clean_lines_publish_nothing_wrong() {
         for rise in ASYM_RISES {
             let mut lost = 0;
             for (k, phase) in [0.0, 0.37, 0.81].into_iter().enumerate() {
-                let sent = frames(N, 21 + k as u32);
-                let words = oversample_asym(&line_bits(&sent), ratio, phase, rise);
+                let line = Clean {
+                    ratio,
+                    phase,
+                    rise,
+                    hz,
+                    n: N,
+                    seed: 21 + k as u32,
+                };
                 for mode in [Mode::Normal { channel: 1 }, Mode::Super] {
-                    let mut rx = HansRx::new(hz, mode).unwrap();
-                    let got = published(&run(&mut rx, &words, 64));
                     let at = format!("{ratio} {rise} {phase} {mode:?}");
-                    let mut index: Vec<usize> = Vec::new();
-                    for f in &got {
-                        let from = index.last().map_or(0, |&i| i + 1);
-                        let i = sent[from..].iter().position(|s| s == f);
-                        assert!(i.is_some(), "{at}: published a frame not sent");
-                        index.push(from + i.unwrap_or(0));
-                    }
+                    let (_, index) = line.run(mode, &at);
                     let first = index.first().copied().unwrap_or(N);
                     assert!(first <= LOCK, "{at}: first published is frame {first}");
                     // All after the first, but the last (its successor's edge
                     // is cut).
-                    lost += (N - first - 1) - got.len();
+                    lost += (N - first - 1) - index.len();
                 }
             }
             report.push(format!("{ratio} {rise}: {lost}"));

@@ -209,7 +209,7 @@ const KNOWN_WRONG: &[(f64, f64, usize, f64, usize)] = &[
 
 /// The line at 37.5, 40 or 50 MHz: the sampling rate of `ratio` (3, 3.2, 4).
 fn rate(ratio: f64) -> u32 {
-    (12_500_000.0 * ratio).round() as u32
+    (f64::from(BIT_RATE_HZ) * ratio).round() as u32
 }
 
 /// Runs the 24 lines of one excursion point (6 seeds, random data and a square
@@ -308,9 +308,9 @@ const BEYOND_DELTAS: [f64; 12] = [
 /// 0.3..0.5 columns are [`KNOWN_WRONG`]'s, not run here: 0). Measured
 /// 2026-12-03 with the far-edge check (`confirm::excursion`) and the young fit
 /// of `young2`: 570 lines at 121 of the 648 points run (562 before `young2`:
-/// +8 at four 3x points jittered ±15 % or more, 0.6..0.65 bit late), 148 of them at 18 points without jitter (3 pairs
-/// 0.4..0.65 bit late at 3x, up to 16 of 24; 4..7 pairs 0.65 bit late at 4x, 8
-/// of 24): a known limit of the tail check on any line, not only a jittered
+/// +8 at four 3x points jittered ±15 % or more, 0.6..0.65 bit late), 148 of
+/// them at 18 points without jitter (3 pairs 0.4..0.65 bit late at 3x, up to 16
+/// of 24; 4..7 pairs 0.65 bit late at 4x, 8 of 24): a known limit of the tail check on any line, not only a jittered
 /// one. Why they pass (mechanism, not traced edge by edge): 3 slipped pairs
 /// make at most 3 far edges, under [`confirm::FAR_EDGES`], and move the mean
 /// under a quarter bit; a slip of 0.55..0.65 bit is read a whole bit off, so its
