@@ -316,3 +316,83 @@ pub fn gap(
     changes.extend(s.changes().iter().copied().filter(|&(t, _)| t > to_ps));
     rebuild(s, changes)
 }
+
+/// One XY3-100 SPI slave's clock glitch: from the clock pulse that starts at or
+/// after `at_ps`, the SCK of data line `line` ([`crate::line::roles::spi_sck`],
+/// made from `clk` if the waveform has none yet) sees `edges` extra falling edges
+/// (a spike pair in that pulse's low half, which the slave samples: the bit there
+/// counts `1 + edges` times) or, negative, misses the next `-edges` pulses (those
+/// bits are never sampled). The shared `clk` and the other slaves are unchanged,
+/// so that line's SPI falls out of step with the others
+/// (`shared::xy3::step`).
+pub fn sck_glitch(
+    wave: &mut Waveform,
+    clk: &str,
+    line: &str,
+    at_ps: Ps,
+    edges: i32,
+) -> Result<(), ImpairError> {
+    if edges == 0 || edges.unsigned_abs() > 64 {
+        return Err(ImpairError::BadParameter {
+            what: "sck_glitch edges",
+            value: f64::from(edges),
+        });
+    }
+    let own = crate::line::roles::spi_sck(line);
+    if wave.get(&own).is_none() {
+        let mut s = get_mut(wave, clk)?.clone();
+        s.set_name(own.clone());
+        wave.insert(s);
+    }
+    let s = get_mut(wave, &own)?;
+    let changes = s.changes().to_vec();
+    // The first rising edge at or after `at_ps`, and the pulse it starts.
+    let Some(k) = changes.iter().position(|&(t, l)| l && t >= at_ps) else {
+        return Err(ImpairError::BadParameter {
+            what: "sck_glitch at_ps (no clock pulse after it)",
+            value: at_ps as f64,
+        });
+    };
+    let mut out: Vec<(Ps, bool)> = changes.get(..k).unwrap_or_default().to_vec();
+    if edges < 0 {
+        // Drop the next `-edges` pulses (a rising edge and its falling edge each).
+        let mut dropped = 0;
+        let mut rest = changes.get(k..).unwrap_or_default().iter().peekable();
+        while let Some(&(t, l)) = rest.next() {
+            if dropped < edges.unsigned_abs() && l {
+                if rest.peek().is_some_and(|&&(_, l2)| !l2) {
+                    rest.next();
+                }
+                dropped += 1;
+                continue;
+            }
+            out.push((t, l));
+        }
+        return rebuild(s, out);
+    }
+    // The pulse's falling edge and the next rising edge bound its low half.
+    let (fall, next) = match (changes.get(k + 1), changes.get(k + 2)) {
+        (Some(&(f, false)), Some(&(n, true))) => (f, n),
+        _ => {
+            return Err(ImpairError::BadParameter {
+                what: "sck_glitch at_ps (no full clock period after it)",
+                value: at_ps as f64,
+            })
+        }
+    };
+    let e = u64::from(edges.unsigned_abs());
+    let step = (next - fall) / (2 * e + 1);
+    if step == 0 {
+        return Err(ImpairError::BadParameter {
+            what: "sck_glitch edges (too many for the low half)",
+            value: f64::from(edges),
+        });
+    }
+    out.extend(changes.get(k..=k + 1).unwrap_or_default().iter().copied());
+    for j in 0..e {
+        out.push((fall + (2 * j + 1) * step, true));
+        out.push((fall + (2 * j + 2) * step, false));
+    }
+    out.extend(changes.get(k + 2..).unwrap_or_default().iter().copied());
+    rebuild(s, out)
+}

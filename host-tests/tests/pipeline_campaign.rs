@@ -331,7 +331,15 @@ fn a_million_faulted_xy3_frames_none_corrupted() {
             }
         }
         total += frames.len() as u64;
-        let mut p = Pipeline::new(&c, Options::default()).unwrap();
+        // The receiver alone: with a fault in a third of the periods the
+        // out-of-step watch (`shared::xy3::step`) keeps the session suspect and
+        // withholds nearly every period (block 0 with it: 2 278 of 50 000 frames
+        // passed, 65 restart requests, 16 input losses), as the firmware would.
+        let opts = Options {
+            xy3_step_watch: false,
+            ..Options::default()
+        };
+        let mut p = Pipeline::new(&c, opts).unwrap();
         // DMA halves of 60 bytes per line (20 frames, 200 us) with the frame ends
         // that fall inside them.
         let mut e = 0;

@@ -47,6 +47,15 @@ pub mod roles {
     pub const HANS_CHANNELS: [&str; 5] = ["CH1", "CH2", "CH3", "CH4", "CH5"];
     /// UART line (XY3-100 backchannel).
     pub const UART: &str = "UART";
+
+    /// The SCK input of one XY3-100 data line's SPI slave when it differs from the
+    /// shared [`CLK`] (`CLK.X` for line `X`): each slave has its own SCK pin fed
+    /// from one clock bus, so a glitch can clock one slave and not the others
+    /// (`crate::impair::sck_glitch`). A waveform without it clocks the slave on
+    /// [`CLK`].
+    pub fn spi_sck(line: &str) -> String {
+        format!("{CLK}.{line}")
+    }
 }
 
 /// Errors of the line converters.

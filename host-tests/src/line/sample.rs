@@ -158,6 +158,126 @@ pub fn xy3_spi(
     Ok(cap)
 }
 
+/// What one SPI slave of [`xy3_spi_session`] delivered.
+struct SlaveRx {
+    bytes: Vec<u8>,
+    /// Per byte: its first and last bit sample.
+    times: Vec<(Ps, Ps)>,
+    /// At each NSS rising edge: bytes so far, and the time.
+    ends: Vec<(u32, Ps)>,
+    pending_bits: u8,
+}
+
+/// One SPI slave on `sck` from `start_ps` on (see [`xy3_spi`] for the sampling).
+fn spi_slave(
+    sck: &crate::wave::Signal,
+    nss: &crate::wave::Signal,
+    data: &crate::wave::Signal,
+    partial: PartialByte,
+    start_ps: Ps,
+) -> SlaveRx {
+    let mut events: Vec<(Ps, bool)> = sck
+        .falling_edges()
+        .filter(|&t| t >= start_ps)
+        .map(|t| (t, false))
+        .collect();
+    events.extend(
+        nss.rising_edges()
+            .filter(|&t| t >= start_ps)
+            .map(|t| (t, true)),
+    );
+    events.sort_unstable();
+    let mut rx = SlaveRx {
+        bytes: Vec::new(),
+        times: Vec::new(),
+        ends: Vec::new(),
+        pending_bits: 0,
+    };
+    let (mut shift, mut nbits, mut first_bit) = (0u8, 0u8, 0);
+    for (t, nss_rise) in events {
+        if nss_rise {
+            rx.ends.push((rx.bytes.len() as u32, t));
+            if partial == PartialByte::Discard {
+                (shift, nbits) = (0, 0);
+            }
+            continue;
+        }
+        if nss.level_at(t) {
+            continue;
+        }
+        shift = (shift << 1) | u8::from(data.level_at(t));
+        if nbits == 0 {
+            first_bit = t;
+        }
+        nbits += 1;
+        if nbits == 8 {
+            rx.bytes.push(shift);
+            rx.times.push((first_bit, t));
+            (shift, nbits) = (0, 0);
+        }
+    }
+    rx.pending_bits = nbits;
+    rx
+}
+
+/// XY3-100 in for one input session (`firmware/tasks/line.rs`, `xy3_in`): the SPI
+/// slaves are enabled together and the SCK bus let in at `start_ps`, so each
+/// slave shifts from the first falling edge of its SCK at or after it (a session
+/// may start inside a frame: that frame's first bits are never seen). Unlike
+/// [`xy3_spi`], each line's slave runs on its own SCK ([`roles::spi_sck`], when the
+/// waveform has one): one slave can see an edge the others miss, and its bytes
+/// then hold other bits than the others' bytes of the same index.
+///
+/// The DMA hands over byte `i` once every line has it: `bytes` are cut to the
+/// shortest line and `byte_times` end at the latest line's last sample. Frame
+/// ends count the first line's bytes (the EXTI reads the X ring), as in
+/// [`xy3_spi`]; `pending_bits` is the first line's.
+pub fn xy3_spi_session(
+    wave: &Waveform,
+    lines: &[&str],
+    partial: PartialByte,
+    start_ps: Ps,
+) -> Result<SpiCapture, LineError> {
+    let nss = signal(wave, roles::SYNC)?;
+    let mut slaves = Vec::with_capacity(lines.len());
+    for &n in lines {
+        let own = roles::spi_sck(n);
+        let sck = match wave.get(&own) {
+            Some(s) => s,
+            None => signal(wave, roles::CLK)?,
+        };
+        slaves.push(spi_slave(sck, nss, signal(wave, n)?, partial, start_ps));
+    }
+    let n = slaves.iter().map(|s| s.bytes.len()).min().unwrap_or(0);
+    let mut cap = SpiCapture::default();
+    for i in 0..n {
+        let first = slaves
+            .first()
+            .and_then(|s| s.times.get(i))
+            .map_or(0, |t| t.0);
+        let last = slaves
+            .iter()
+            .filter_map(|s| s.times.get(i))
+            .map(|t| t.1)
+            .max()
+            .unwrap_or(0);
+        cap.byte_times.push((first, last));
+    }
+    if let Some(x) = slaves.first() {
+        cap.frame_ends = x.ends.iter().map(|e| e.0).collect();
+        cap.end_times = x.ends.iter().map(|e| e.1).collect();
+        cap.pending_bits = x.pending_bits;
+    }
+    cap.bytes = slaves
+        .into_iter()
+        .map(|mut s| {
+            s.bytes.truncate(n);
+            s.bytes
+        })
+        .collect();
+    Ok(cap)
+}
+
 /// Upper bound on words per channel from [`Oversampler::sample`] (1 GiB), so a wrong
 /// end time gives an error instead of exhausting memory.
 pub const MAX_WORDS: u64 = 1 << 28;

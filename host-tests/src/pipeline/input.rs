@@ -2,7 +2,7 @@
 //! turned into the bridge's neutral [`LineEvent`]s.
 
 use shared::bridge::{Config, HansDecode, Protocol, ZSource};
-use shared::model::LineEvent;
+use shared::model::{FaultKind, Line, LineEvent};
 use shared::{hans, xy2, xy3};
 
 use super::{ControllerInput, Options, PipelineError, CONTROLLER_PINS_XY2};
@@ -51,9 +51,16 @@ impl Input {
             }
             Protocol::Xy3 => {
                 // As the firmware: the configured lines the bridge uses.
+                let lines = config.xy3_input_lines();
                 Input::Xy3(Box::new(Xy3Input {
-                    rx: xy3::rx::Receiver::new(config.xy3_input_lines()),
+                    rx: xy3::rx::Receiver::new(lines),
+                    lines,
                     bytes: 0,
+                    watch: options
+                        .xy3_step_watch
+                        .then(|| xy3::step::StepWatch::new(xy3::step::OUT_OF_STEP_NS)),
+                    requests: Vec::new(),
+                    new_session: false,
                 }))
             }
             Protocol::Hans => {
@@ -64,6 +71,28 @@ impl Input {
         })
     }
 
+    /// The times (ns) the XY3-100 input's [`xy3::step::StepWatch`] asked for a
+    /// restart of the input session (empty for other inputs).
+    pub fn xy3_restart_requests(&self) -> &[u64] {
+        match self {
+            Input::Xy3(x) => &x.requests,
+            _ => &[],
+        }
+    }
+
+    /// An XY3-100 input session starts over (the line task restarted every SPI
+    /// slave together, `firmware/tasks/line.rs`): the next chunk is the first of
+    /// the new byte stream. `false` for other inputs.
+    pub fn xy3_new_session(&mut self) -> bool {
+        match self {
+            Input::Xy3(x) => {
+                x.new_session = true;
+                true
+            }
+            _ => false,
+        }
+    }
+
     pub fn name(&self) -> &'static str {
         match self {
             Input::Xy2(_) => "XY2-100",
@@ -72,14 +101,16 @@ impl Input {
         }
     }
 
-    /// Runs the receiver over `chunk` and appends its events in order.
+    /// Runs the receiver over `chunk`, which the bridge has at `now_ns`, and
+    /// appends its events in order.
     pub fn feed(
         &mut self,
+        now_ns: u64,
         chunk: ControllerInput<'_>,
         out: &mut Vec<LineEvent>,
     ) -> Result<(), PipelineError> {
         let mut at = Vec::new();
-        self.feed_at(chunk, &mut at)?;
+        self.feed_at(now_ns, chunk, &mut at)?;
         out.extend(at.into_iter().map(|(_, e)| e));
         Ok(())
     }
@@ -89,6 +120,7 @@ impl Input {
     /// decided it, `0..=units`. Returns the chunk's units.
     pub fn feed_at(
         &mut self,
+        now_ns: u64,
         chunk: ControllerInput<'_>,
         out: &mut Vec<(u32, LineEvent)>,
     ) -> Result<u32, PipelineError> {
@@ -100,6 +132,22 @@ impl Input {
                 samples.len()
             }
             (Input::Xy3(x), ControllerInput::Xy3 { lines, ends }) => {
+                if x.new_session {
+                    // As the bridge on the first half of a new session
+                    // (`firmware/tasks/bridge_core.rs`, `Xy3Decoder::feed`): the
+                    // byte stream starts over at 0, what the old receiver still
+                    // held is gone. The watch carries on (its backoff).
+                    x.new_session = false;
+                    x.rx = xy3::rx::Receiver::new(x.lines);
+                    x.bytes = 0;
+                    out.push((
+                        0,
+                        LineEvent::Fault {
+                            line: Line::Framing,
+                            kind: FaultKind::Dropped,
+                        },
+                    ));
+                }
                 let len = lines.first().map_or(0, |l| l.len());
                 let origin = x.bytes;
                 let mut from = 0;
@@ -111,7 +159,7 @@ impl Input {
                         .collect();
                     x.rx.push_bytes(&part)
                         .map_err(|e| PipelineError::BadInput(e.to_string()))?;
-                    drain_xy3(&mut x.rx, origin, len, out);
+                    x.drain(now_ns, origin, len, out);
                     from = to;
                 }
                 if len == 0 {
@@ -121,7 +169,7 @@ impl Input {
                 }
                 x.bytes = origin.wrapping_add(len as u32);
                 x.rx.push_ends(ends);
-                drain_xy3(&mut x.rx, origin, len, out);
+                x.drain(now_ns, origin, len, out);
                 len
             }
             (Input::Hans(rx), ControllerInput::Hans(rings)) => {
@@ -147,21 +195,43 @@ fn unit(n: usize) -> u32 {
     u32::try_from(n).unwrap_or(u32::MAX)
 }
 
-/// The XY3-100 receiver and the X bytes pushed into it so far (wrapping, the
-/// count its end positions use).
+/// The XY3-100 receiver, the X bytes pushed into it in this session so far
+/// (wrapping, the count its end positions use), and the out-of-step watch the
+/// firmware's bridge runs on its periods (`firmware/tasks/bridge_core.rs`,
+/// `Xy3Decoder`).
 pub(super) struct Xy3Input {
     rx: xy3::rx::Receiver,
+    lines: xy3::rx::Lines,
     bytes: u32,
+    /// Withholds suspect periods and asks for a session restart, with the
+    /// firmware's limit (`None`: `Options::xy3_step_watch` off).
+    watch: Option<xy3::step::StepWatch>,
+    /// When the watch asked for a restart, ns (the firmware's `XY3_RESYNC`).
+    requests: Vec<u64>,
+    /// The next chunk starts a new session.
+    new_session: bool,
 }
 
-/// The events of every period decoded so far, at their end positions counted from
-/// the chunk's first byte (`origin`), within `0..=len` (a period closed by an end
-/// position of an earlier chunk is at 0).
-fn drain_xy3(rx: &mut xy3::rx::Receiver, origin: u32, len: usize, out: &mut Vec<(u32, LineEvent)>) {
-    while let Some(p) = rx.poll() {
-        // Signed: an end before the chunk's origin wraps to a large u32.
-        let max = i32::try_from(len).unwrap_or(i32::MAX);
-        let at = (p.end.wrapping_sub(origin) as i32).clamp(0, max) as u32;
-        p.for_each_event(|le| out.push((at, le)));
+impl Xy3Input {
+    /// The events of every period decoded so far through the watch, at their end
+    /// positions counted from the chunk's first byte (`origin`), within `0..=len`
+    /// (a period closed by an end position of an earlier chunk is at 0). The
+    /// watch's clock is the chunk's time, as the firmware's is the time the bridge
+    /// drains the half.
+    fn drain(&mut self, now_ns: u64, origin: u32, len: usize, out: &mut Vec<(u32, LineEvent)>) {
+        while let Some(p) = self.rx.poll() {
+            // Signed: an end before the chunk's origin wraps to a large u32.
+            let max = i32::try_from(len).unwrap_or(i32::MAX);
+            let at = (p.end.wrapping_sub(origin) as i32).clamp(0, max) as u32;
+            let mut emit = |le| out.push((at, le));
+            match self.watch.as_mut() {
+                Some(w) => {
+                    if w.period(now_ns, &p, emit) {
+                        self.requests.push(now_ns);
+                    }
+                }
+                None => p.for_each_event(&mut emit),
+            }
+        }
     }
 }

@@ -93,6 +93,12 @@ pub struct Options {
     pub slaved_lead_ns: u64,
     /// XY2-100 head STATUS level: consecutive equal samples before a change counts.
     pub status_debounce: u16,
+    /// XY3-100 input: run the firmware's out-of-step watch
+    /// (`shared::xy3::step::StepWatch`) on the receiver's periods (default). Off,
+    /// every period's events go to the bridge as the receiver decided them: for a
+    /// test of the receiver alone at fault rates at which the watch would withhold
+    /// nearly everything.
+    pub xy3_step_watch: bool,
 }
 
 impl Default for Options {
@@ -103,6 +109,7 @@ impl Default for Options {
             lead_slots: 1,
             slaved_lead_ns: 1_000,
             status_debounce: 3,
+            xy3_step_watch: true,
         }
     }
 }
@@ -327,7 +334,7 @@ impl Pipeline {
     /// Feeds one chunk of controller-side buffers at `now_ns` (see [`Pipeline`]).
     pub fn feed(&mut self, now_ns: u64, chunk: ControllerInput<'_>) -> Result<(), PipelineError> {
         let mut events: Vec<LineEvent> = Vec::new();
-        self.input.feed(chunk, &mut events)?;
+        self.input.feed(now_ns, chunk, &mut events)?;
         self.core.line_events(now_ns, &events);
         Ok(())
     }
@@ -349,7 +356,7 @@ impl Pipeline {
         chunk: ControllerInput<'_>,
     ) -> Result<(), PipelineError> {
         let mut events = Vec::new();
-        let units = self.input.feed_at(chunk, &mut events)?;
+        let units = self.input.feed_at(now_ns, chunk, &mut events)?;
         let n = u64::from(units.max(1));
         for (at, e) in &events {
             let unit = u64::from((*at).min(units).saturating_sub(1));
@@ -357,6 +364,22 @@ impl Pipeline {
             self.core.line_events(t, std::slice::from_ref(e));
         }
         Ok(())
+    }
+
+    /// The times (ns) the XY3-100 input asked for its session to be restarted
+    /// (`shared::xy3::step::StepWatch`, the firmware's `XY3_RESYNC`); empty for
+    /// other inputs. The pipeline does not restart by itself: the SPI slaves are
+    /// the caller's ([`stimulus::xy3_sessions`] closes the loop as the firmware's
+    /// line task does).
+    pub fn xy3_restart_requests(&self) -> &[u64] {
+        self.input.xy3_restart_requests()
+    }
+
+    /// The caller restarted the XY3-100 input session (every SPI slave together):
+    /// the next controller chunk is the first of the new session's byte stream,
+    /// counted from 0. Returns `false` (and changes nothing) for other inputs.
+    pub fn xy3_new_session(&mut self) -> bool {
+        self.input.xy3_new_session()
     }
 
     /// Feeds one chunk of head-side status buffers at `now_ns`.

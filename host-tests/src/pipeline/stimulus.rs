@@ -11,7 +11,7 @@ use shared::xy3::FrameSize;
 
 use super::{tx, ControllerInput, HeadStatusInput, Pipeline, PipelineError};
 use crate::line::drive::{self, OutPinMap};
-use crate::line::sample::Oversampler;
+use crate::line::sample::{self, Oversampler, PartialByte};
 use crate::line::{roles, uart};
 use crate::sim::capture;
 use crate::wave::{Ps, Waveform, PS_PER_S};
@@ -423,6 +423,148 @@ pub fn capture(
         }
     }
     Ok(out)
+}
+
+/// How [`xy3_sessions`] models the firmware's XY3-100 line task
+/// (`firmware/tasks/line.rs`, `xy3_in`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SessionModel {
+    /// What the SPI slaves do with a partial byte at NSS release.
+    pub partial: PartialByte,
+    /// From the end of a session's last half to the next session's SCK gate
+    /// opening, ns: dropping five SPI slaves, starting them and the SYNC EXTI again
+    /// (not measured on the board; tens of microseconds at most).
+    pub setup_ns: u64,
+}
+
+impl Default for SessionModel {
+    fn default() -> Self {
+        SessionModel {
+            partial: PartialByte::Discard,
+            setup_ns: 20_000,
+        }
+    }
+}
+
+/// One input session of [`xy3_sessions`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Xy3Session {
+    /// When its SCK gate opened, ps (0 for the first).
+    pub start_ps: Ps,
+    /// DMA halves it handed to the pipeline.
+    pub halves: u32,
+    /// When the pipeline asked for a restart during it, ns (`None`: it ran to the
+    /// end of the waveform).
+    pub requested_ns: Option<u64>,
+    /// When its last half was complete, ns (the line task restarts right after).
+    pub end_ns: u64,
+}
+
+/// The DMA half the firmware hands over per line (`firmware/channels.rs`,
+/// `XY3_HALF`).
+pub const XY3_HALF: usize = shared::xy3::rx::WINDOW / 2;
+
+/// Feeds an XY3-100 controller's `wave` to `p` as the firmware's line task
+/// delivers it, input session by input session, then runs the clocks to `end_ns`.
+///
+/// In a session the SPI slaves of the received lines ([`sample::xy3_spi_session`],
+/// each on its own SCK when an impairment gave it one) fill their rings from the
+/// session's start; every [`XY3_HALF`] bytes of every line, with the frame ends
+/// the EXTI recorded by then, are one half, fed at the time its last byte is in
+/// and spread over the time since the one before ([`Pipeline::feed_spread`]).
+/// When the pipeline asks for a restart ([`Pipeline::xy3_restart_requests`],
+/// raised while it decodes half `j`), the line task, which checks the request
+/// once per half after handing one over, still delivers half `j + 1` (in flight
+/// when the bridge decoded `j`) and ends the session there: the bytes after that
+/// half, the partial byte and the frame ends not drained are lost. After
+/// `model.setup_ns` a new session starts every slave together
+/// ([`Pipeline::xy3_new_session`]), from the next clock edge, possibly inside a
+/// frame. A glitch before that start no longer matters: all lines are in step
+/// again.
+pub fn xy3_sessions(
+    p: &mut Pipeline,
+    config: &Config,
+    wave: &Waveform,
+    model: &SessionModel,
+    end_ns: u64,
+) -> Result<Vec<Xy3Session>, PipelineError> {
+    if config.controller.protocol != Protocol::Xy3 {
+        return Err(PipelineError::WrongInput {
+            expected: "XY3-100",
+            got: "an XY3-100 session",
+        });
+    }
+    let names: Vec<&str> = config
+        .xy3_input_lines()
+        .axes()
+        .map(|a| roles::AXES[a.index()])
+        .collect();
+    let mut sessions = Vec::new();
+    let mut start_ps: Ps = 0;
+    let mut prev_ns = 0;
+    loop {
+        let cap = sample::xy3_spi_session(wave, &names, model.partial, start_ps).map_err(err)?;
+        let len = cap.bytes.first().map_or(0, Vec::len);
+        let halves = len / XY3_HALF;
+        let asked = p.xy3_restart_requests().len();
+        let mut session = Xy3Session {
+            start_ps,
+            halves: 0,
+            requested_ns: None,
+            end_ns: ns_ceil(start_ps),
+        };
+        let mut last_half = None;
+        let mut next_end = 0;
+        for h in 0..halves {
+            let (lo, hi) = (h * XY3_HALF, (h + 1) * XY3_HALF);
+            let done_ps = cap.byte_times.get(hi - 1).map_or(start_ps, |t| t.1);
+            let t_ns = ns_ceil(done_ps);
+            let mut ends = Vec::new();
+            while let (Some(&e), Some(&t)) =
+                (cap.frame_ends.get(next_end), cap.end_times.get(next_end))
+            {
+                if t > done_ps {
+                    break;
+                }
+                ends.push(e);
+                next_end += 1;
+            }
+            let lines: Vec<&[u8]> = cap
+                .bytes
+                .iter()
+                .map(|l| l.get(lo..hi).unwrap_or_default())
+                .collect();
+            let span = t_ns.saturating_sub(prev_ns).max(1);
+            p.feed_spread(
+                t_ns,
+                span,
+                ControllerInput::Xy3 {
+                    lines: &lines,
+                    ends: &ends,
+                },
+            )?;
+            prev_ns = t_ns;
+            session.halves += 1;
+            session.end_ns = t_ns;
+            if last_half == Some(h) {
+                break;
+            }
+            if last_half.is_none() {
+                if let Some(&t) = p.xy3_restart_requests().get(asked) {
+                    session.requested_ns = Some(t);
+                    last_half = Some(h + 1);
+                }
+            }
+        }
+        sessions.push(session);
+        if session.requested_ns.is_none() {
+            break;
+        }
+        start_ps = session.end_ns * 1000 + model.setup_ns * 1000;
+        p.xy3_new_session();
+    }
+    p.run_until(end_ns);
+    Ok(sessions)
 }
 
 /// Merges consecutive items of the same kind that fall into the same window of

@@ -211,7 +211,7 @@ async fn line_in(g: &Graph, mut input: Box<Input>) {
         let mut events = Vec::new();
         let fed = it
             .buffers
-            .controller_input(|chunk| input.feed(chunk, &mut events));
+            .controller_input(|chunk| input.feed(it.t_ns, chunk, &mut events));
         if let Some(Err(e)) = fed {
             g.note_error(e);
         }
