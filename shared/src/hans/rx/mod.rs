@@ -763,10 +763,11 @@ impl HansRx {
                 }
             }
         }
-        // The reference's far tail edges go into the line's record after every
-        // check of this frame used the record as it was (`confirm::excursion`).
-        if let Some(far) = measured.far {
-            self.timing.count_far(far);
+        // The reference's far and off tail edges go into the line's record after
+        // every check of this frame used the record as it was
+        // (`confirm::excursion`).
+        if let Some(tail) = measured.tail {
+            self.timing.count_far(tail);
         }
         // A young lock decodes and tracks, but publishes nothing yet (acquisition,
         // see `timing::SETTLED`), nor does a coasted one before a verified frame
@@ -861,13 +862,14 @@ impl HansRx {
     /// where one member's timing puts them vouch for the pattern they share.
     /// A tail within those bounds is still rejected when its far edges make it a
     /// short excursion of the line's phase on a line whose recent tails had
-    /// (nearly) none ([`confirm::excursion`]); that check is part of the
+    /// (nearly) none, fewer of them on a steady line ([`confirm::excursion`],
+    /// `Timing::clean`, `Timing::steady`); that check is part of the
     /// confirmation, so every caller gets it. See [`Checked`] for what is
     /// returned.
     fn confirmed(&self, n: usize, start: u32, delay: i32, ratio: i32, pattern: u128) -> Checked {
         const FAILED: Checked = Checked {
             sum: None,
-            far: None,
+            tail: None,
         };
         let Some(ring) = self.rings.get(n) else {
             return FAILED;
@@ -883,12 +885,13 @@ impl HansRx {
         } else if !self.timing.settled() {
             Checked {
                 sum: Some(0),
-                far: None,
+                tail: None,
             }
         } else if let Some(t) = confirm::tail(ring, head, ratio, pattern) {
             Checked {
-                sum: (!confirm::excursion(t.far, self.timing.clean())).then_some(t.sum),
-                far: Some(t.far),
+                sum: (!confirm::excursion(t, self.timing.clean(), self.timing.steady()))
+                    .then_some(t.sum),
+                tail: Some(t),
             }
         } else {
             FAILED
@@ -1349,11 +1352,11 @@ struct Checked {
     /// tail is not measured), the phase measurement `Timing::advance` blends in.
     /// `None` when a start edge or the tail failed, or the tail is an excursion.
     sum: Option<i32>,
-    /// The far edges of a settled lock's tail that passed the bounds of
-    /// [`confirm::tail`], whether or not [`confirm::excursion`] rejected it: what
-    /// the line's record counts for the reference (`Timing::count_far`). `None`
-    /// when no tail was measured.
-    far: Option<u32>,
+    /// A settled lock's tail that passed the bounds of [`confirm::tail`],
+    /// whether or not [`confirm::excursion`] rejected it: its far and off
+    /// edges are what the line's record counts for the reference
+    /// (`Timing::count_far`). `None` when no tail was measured.
+    tail: Option<confirm::Tail>,
 }
 
 /// Half-width (Q16 samples) of the windows in which [`HansRx::confirmed`] wants a

@@ -143,6 +143,11 @@ pub struct Timing {
     /// the line's tails are clean enough that [`super::confirm::excursion`]
     /// applies. A lock starts at [`FAR_START`].
     far: u16,
+    /// Off edges ([`super::confirm::OFF_EDGE`], 3/4 sample) per settled frame
+    /// of the reference's tail, averaged as `far` is: under [`CLEAN`] the line
+    /// is steady ([`Timing::steady`]). Never below `far` (an off edge counts
+    /// wherever a far one does), so a steady line is clean.
+    off: u16,
 }
 
 /// [`Timing::clean`] below this far-edge rate (Q12 per frame): one far edge in
@@ -174,6 +179,7 @@ impl Timing {
             tail: None,
             rephased: false,
             far: FAR_START,
+            off: FAR_START,
         }
     }
 
@@ -194,6 +200,7 @@ impl Timing {
         self.tail = None;
         self.rephased = false;
         self.far = FAR_START;
+        self.off = FAR_START;
         self.set(found.start, found.period);
     }
 
@@ -203,12 +210,22 @@ impl Timing {
         self.far < CLEAN
     }
 
-    /// Counts a settled frame's reference tail with `far` far edges into the
-    /// rate [`Timing::clean`] reads (a sixteenth of the way, rounded so that
-    /// the rate decays to 0).
-    pub fn count_far(&mut self, far: u32) {
-        let far = far.min(super::confirm::FAR_EDGES) as u16;
+    /// Counts a settled frame's reference tail's far and off edges into the
+    /// rates [`Timing::clean`] and [`Timing::steady`] read (a sixteenth of the
+    /// way, rounded so that each rate decays to 0).
+    pub fn count_far(&mut self, tail: super::confirm::Tail) {
+        let far = tail.far.min(super::confirm::FAR_EDGES) as u16;
         self.far = self.far - self.far.div_ceil(16) + far * (4096 / 16);
+        let off = tail.off.min(super::confirm::FAR_EDGES) as u16;
+        self.off = self.off - self.off.div_ceil(16) + off * (4096 / 16);
+    }
+
+    /// True when the recent settled frames' tails held (nearly) no off edges:
+    /// every checked edge within 3/4 sample of the timing, a line without
+    /// jitter to speak of, on which [`super::confirm::excursion`] rejects 3 far
+    /// edges instead of 4.
+    pub fn steady(&self) -> bool {
+        self.off < CLEAN
     }
 
     fn set(&mut self, start: u32, period: i32) {
@@ -711,30 +728,62 @@ mod tests {
 
     #[test]
     fn a_line_is_clean_after_eleven_tails_without_far_edges() {
-        // A new lock is not known to be clean; 11 tails without a far edge make
-        // it so, one far edge undoes that for 11 more at least, and a line showing one in
-        // every third tail (±25 % jitter at 3x) never gets there. A tail's count
-        // weighs at most `FAR_EDGES`, and the rate stays within its type.
-        let mut t = relocked();
-        let clean_after = |t: &mut Timing| {
-            (0..40).position(|_| {
-                let clean = t.clean();
-                t.count_far(0);
-                clean
-            })
+        // A new lock is not known to be clean (nor steady); 11 tails without a
+        // far (off) edge make it so, one undoes that for 11 more at least, and
+        // a line showing one in every third tail (±25 % jitter at 3x) never
+        // gets there. A tail's count weighs at most `FAR_EDGES`, and the rate
+        // stays within its type. The two records are kept apart: far edges
+        // leave the steady one alone, off edges the clean one.
+        use super::super::confirm::Tail;
+        let far = |n: u32| Tail {
+            sum: 0,
+            far: n,
+            off: 0,
+            end: false,
         };
-        assert_eq!(clean_after(&mut t), Some(11), "{t:?}");
-        t.count_far(1);
-        assert!(!t.clean());
-        let again = clean_after(&mut t);
-        assert!(again.is_some_and(|n| n >= 11), "{again:?} {t:?}");
-        for k in 0..300 {
-            t.count_far(u32::from(k % 3 == 0));
-            assert!(k < 2 || !t.clean(), "{k}");
+        let off = |n: u32| Tail {
+            sum: 0,
+            far: 0,
+            off: n,
+            end: false,
+        };
+        for (edges, state) in [
+            (
+                &far as &dyn Fn(u32) -> Tail,
+                Timing::clean as fn(&Timing) -> bool,
+            ),
+            (&off, Timing::steady),
+        ] {
+            let mut t = relocked();
+            let after = |t: &mut Timing| {
+                (0..40).position(|_| {
+                    let now = state(t);
+                    t.count_far(edges(0));
+                    now
+                })
+            };
+            assert_eq!(after(&mut t), Some(11), "{t:?}");
+            t.count_far(edges(1));
+            assert!(!state(&t));
+            let again = after(&mut t);
+            assert!(again.is_some_and(|n| n >= 11), "{again:?} {t:?}");
+            for k in 0..300 {
+                t.count_far(edges(u32::from(k % 3 == 0)));
+                assert!(k < 2 || !state(&t), "{k}");
+            }
+            for _ in 0..300 {
+                t.count_far(edges(u32::MAX));
+                assert!(!state(&t));
+            }
         }
-        for _ in 0..300 {
-            t.count_far(u32::MAX);
-            assert!(!t.clean());
+        let mut t = relocked();
+        for _ in 0..20 {
+            t.count_far(far(8));
         }
+        assert!(!t.clean() && t.steady());
+        for _ in 0..100 {
+            t.count_far(off(8));
+        }
+        assert!(t.clean() && !t.steady());
     }
 }
