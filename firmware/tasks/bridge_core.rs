@@ -117,7 +117,12 @@ impl Xy3Decoder {
     /// Feeds one half and hands the events of every completed period to `emit`,
     /// with the period's end position in this half's X bytes (`0..=XY3_HALF`: a
     /// period closed by a frame end that came with this half but counts bytes of an
-    /// earlier one is at 0).
+    /// earlier one is at 0). The watch holds each good period until the next one
+    /// confirms it (`shared::xy3::step`): its events go out at the *confirming*
+    /// period's position, one period late; the last period of a half waits for
+    /// the next half and goes out at its first period's position. Every frame is
+    /// thus placed 3 bytes later in the byte stream: the pacing keeps their order
+    /// and spacing, one slot later.
     fn feed(&mut self, raw: &Xy3Raw, emit: &mut impl FnMut(u32, LineEvent)) {
         if self.session != Some(raw.session) || raw.first_byte != self.next_byte {
             // A new input session (all lines restarted) or a lost half: the byte
@@ -153,11 +158,7 @@ impl Xy3Decoder {
             return;
         }
         self.rx.push_ends(&raw.ends);
-        // The watch's clock: halves are drained once per batch (200-250 us), fine
-        // against its 2 ms limit.
-        let now_ns = embassy_time::Instant::now()
-            .as_micros()
-            .saturating_mul(1000);
+        let now_ns = Self::now_ns();
         while let Some(period) = self.rx.poll() {
             // Signed: an end before this half's first byte wraps to a large u32.
             let at = (period.end.wrapping_sub(raw.first_byte) as i32).clamp(0, XY3_HALF as i32);
@@ -170,6 +171,23 @@ impl Xy3Decoder {
                 XY3_RESYNC.signal(raw.session);
             }
         }
+    }
+
+    /// After the halves of a batch (or none): the watch's held period goes to
+    /// `emit` once it has waited `CONFIRM_NS` with no period after it (the
+    /// controller paused or stopped). A continuing stream confirms it sooner: the
+    /// next half (at most 213 us of 24-bit frames at 100 kHz) brings the next
+    /// period, so only a stream slower than 0.5 ms per half sees time releases.
+    fn release(&mut self, emit: impl FnMut(LineEvent)) {
+        self.watch.release(Self::now_ns(), emit);
+    }
+
+    /// The watch's clock: halves are drained once per batch (200-250 us), fine
+    /// against its 2 ms limit and its 0.5 ms confirmation wait.
+    fn now_ns() -> u64 {
+        embassy_time::Instant::now()
+            .as_micros()
+            .saturating_mul(1000)
     }
 }
 
@@ -273,6 +291,9 @@ impl Core {
                     let base = (h * XY3_HALF) as u32;
                     rx.feed(&raw, &mut |at, le| sink(base + at, units, le));
                 }
+                // A period released unconfirmed goes after the drained input (the
+                // end of the batch's bytes).
+                rx.release(|le| sink(units, units, le));
             }
             Decoder::Hans if baked == Controller::Hans => super::hans_in::take_events(sink),
             // Not built in this image (`Core::new`).

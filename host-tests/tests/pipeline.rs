@@ -174,7 +174,14 @@ fn pairing_of(mut c: Config, xy3_size: FrameSize) -> HeadView {
             impair::jitter(w, &n, 8_000, 7).unwrap();
         },
         Vec::new(),
-        50_000,
+        // An XY3-100 input's last period waits for the step watch's
+        // confirmation time (`shared::xy3::step::CONFIRM_NS`): no period follows.
+        50_000
+            + if ctrl == Protocol::Xy3 {
+                shared::xy3::step::CONFIRM_NS
+            } else {
+                0
+            },
     );
     let label = format!(
         "{ctrl:?} -> {head:?} {timing:?} {xy3_size:?} {:?}",
@@ -522,10 +529,11 @@ fn clock_stop_of(mut c: Config, after: shared::bridge::AfterHold) {
         0
     };
     // An XY3-100 input whose CLK stops while SYNC runs on reports periods without
-    // bytes: the out-of-step watch (`shared::xy3::step`) turns suspect and withholds
-    // the first GOOD_RUN - 1 good periods after the restart, as the firmware does.
+    // bytes: the out-of-step watch (`shared::xy3::step`) drops the good period it
+    // held for confirmation when they begin, turns suspect and withholds the first
+    // GOOD_RUN - 1 good periods after the restart, as the firmware does.
     let withheld = if c.controller.protocol == Protocol::Xy3 {
-        u64::from(shared::xy3::step::GOOD_RUN) - 1
+        u64::from(shared::xy3::step::GOOD_RUN)
     } else {
         0
     };
@@ -1131,7 +1139,10 @@ fn latency_bounds() {
     use host_tests::pipeline::latency::{config, measure};
     for ctrl in PROTOCOLS {
         for head in PROTOCOLS {
-            let lead = if head == Protocol::Hans { 2.0 } else { 1.0 };
+            // An XY3-100 input's good period waits for the next one to confirm
+            // it (`shared::xy3::step`): one frame period more.
+            let confirm = if ctrl == Protocol::Xy3 { 1.0 } else { 0.0 };
+            let lead = if head == Protocol::Hans { 2.0 } else { 1.0 } + confirm;
             // A HANS-100 controller's acquisition takes six more frames.
             let n = if ctrl == Protocol::Hans { 40 } else { 30 };
             let l = measure(&config(ctrl, head, Timing::FreeRunning), 4, n).unwrap();
@@ -1145,8 +1156,9 @@ fn latency_bounds() {
             );
             if head != Protocol::Hans {
                 let s = measure(&config(ctrl, head, Timing::Slaved), 2, 30).unwrap();
+                let c = confirm * 10_000.0;
                 assert!(
-                    s.min_ns >= 1_000.0 && s.max_ns < 2_000.0,
+                    s.min_ns >= 1_000.0 + c && s.max_ns < 2_000.0 + c,
                     "{ctrl:?} -> {head:?}: {s:?}"
                 );
             }

@@ -156,15 +156,19 @@ impl Run {
 /// The wrong frames [`glitched_line_restarts_the_session`] forwards (its seed):
 /// (case, input frame after the glitch's) of each period the shifted line
 /// passed by chance before the watch had seen [`shared::xy3::step::SUSPECT_BAD`]
-/// bad periods. The firmware forwards them too: the watch cannot withhold a
-/// period before the ones after it show the fault, and the hold then repeats it.
-const GLITCH_ESCAPES: [(usize, usize); 7] =
-    [(2, 0), (4, 2), (8, 0), (26, 2), (28, 1), (44, 2), (44, 3)];
+/// bad periods, *and* whose next period passed too (the watch releases a good
+/// period only when the next one confirms it). The firmware forwards them too,
+/// and the hold then repeats the last. Two consecutive chance passes: about one
+/// glitch in 25 (17 frames in 16 of 400 runs; 71 in 60 without the
+/// confirmation, whose table here was 7 frames in 6 cases).
+const GLITCH_ESCAPES: [(usize, usize); 2] = [(28, 1), (44, 2)];
 
 /// The wrong frames [`stuck_line_restarts_with_backoff_and_never_forwards`]
 /// forwards: the case of each frame the line broke in that still passed its
-/// check (the 24-bit parity misses half of such tails).
-const STUCK_ESCAPES: [usize; 2] = [0, 2];
+/// check (the 24-bit parity misses half of such tails). None: the watch holds
+/// every good period until the next one confirms it, and the period after the
+/// break fails (it was `[0, 2]` without that confirmation).
+const STUCK_ESCAPES: [usize; 0] = [];
 
 /// A frame written to the head (not parked), and the input frame it carries.
 #[derive(Debug, Clone, Copy)]
@@ -308,15 +312,17 @@ fn glitched_line_restarts_the_session() {
         assert_eq!(resyncs as usize, run.sessions.len() - 1, "{label}");
         if !persists(partial, edges) {
             assert_eq!(run.sessions.len(), 1, "{label}: {:?}", run.sessions);
-            assert_eq!(dropped, 0, "{label}");
+            // The bad period drops the good one the watch held for its
+            // confirmation (when the period before the bad one was good).
+            assert!(dropped <= 1, "{label}: {dropped} dropped");
             assert!(
                 states.iter().all(|s| s.1 == LinkState::Running),
                 "{label}: {states:?}"
             );
-            // At most the glitch's frame is lost.
+            // At most the glitch's frame and the one held before it are lost.
             let idx: Vec<usize> = carried.iter().map(|c| c.input).collect();
             let gaps: usize = idx.windows(2).map(|w| w[1] - w[0] - 1).sum();
-            assert!(gaps <= 1, "{label}: {gaps} frames lost");
+            assert!(gaps <= 1 + dropped as usize, "{label}: {gaps} frames lost");
             println!(
                 "{:>4}  {:<9}  {line:>4} {edges:>+5}  {:>9}  {:>10}  {:>10}  {:>9}  {:>4}  {:>8}",
                 size.bits(),

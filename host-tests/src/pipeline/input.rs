@@ -93,6 +93,25 @@ impl Input {
         }
     }
 
+    /// When the XY3-100 watch's held period goes out unconfirmed if no period
+    /// comes first (`StepWatch::release_due`); `None` for other inputs.
+    pub fn release_due(&self) -> Option<u64> {
+        match self {
+            Input::Xy3(x) => x.watch.as_ref().and_then(|w| w.release_due()),
+            _ => None,
+        }
+    }
+
+    /// At `now_ns` with no new input: the XY3-100 watch's held period, once due
+    /// (`StepWatch::release`), as the firmware's bridge releases it every batch.
+    pub fn release(&mut self, now_ns: u64, out: &mut Vec<LineEvent>) {
+        if let Input::Xy3(x) = self {
+            if let Some(w) = x.watch.as_mut() {
+                w.release(now_ns, |le| out.push(le));
+            }
+        }
+    }
+
     pub fn name(&self) -> &'static str {
         match self {
             Input::Xy2(_) => "XY2-100",
@@ -170,6 +189,7 @@ impl Input {
                 x.bytes = origin.wrapping_add(len as u32);
                 x.rx.push_ends(ends);
                 x.drain(now_ns, origin, len, out);
+                x.release(now_ns, len, out);
                 len
             }
             (Input::Hans(rx), ControllerInput::Hans(rings)) => {
@@ -213,6 +233,15 @@ pub(super) struct Xy3Input {
 }
 
 impl Xy3Input {
+    /// The watch's held period once it has waited too long for the next one
+    /// (`StepWatch::release`), at the end of the chunk (`len`).
+    fn release(&mut self, now_ns: u64, len: usize, out: &mut Vec<(u32, LineEvent)>) {
+        if let Some(w) = self.watch.as_mut() {
+            let at = unit(len);
+            w.release(now_ns, |le| out.push((at, le)));
+        }
+    }
+
     /// The events of every period decoded so far through the watch, at their end
     /// positions counted from the chunk's first byte (`origin`), within `0..=len`
     /// (a period closed by an end position of an earlier chunk is at 0). The

@@ -328,6 +328,13 @@ impl Pipeline {
     /// Runs the output and controller-status clocks for every step due before
     /// `now_ns`. Times earlier than a previous call are taken as that call's time.
     pub fn run_until(&mut self, now_ns: u64) {
+        // An XY3-100 period the step watch holds for confirmation goes out when
+        // due if no input came first (the firmware's bridge looks every batch).
+        if let Some(due) = self.input.release_due().filter(|&d| d < now_ns) {
+            let mut events = Vec::new();
+            self.input.release(due, &mut events);
+            self.core.line_events(due, &events);
+        }
         self.core.run_until(now_ns);
     }
 

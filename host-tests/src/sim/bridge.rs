@@ -523,7 +523,12 @@ pub fn run(run: &BridgeRun<'_>) -> Result<Report, SimError> {
         feed(&mut p, *t, step, &ctrl, status.as_ref())?;
         progress.tick(i + 1);
     }
-    let end_ns = ns(end_ps.saturating_add(TAIL_SLOTS * period_ps));
+    let mut end_ns = ns(end_ps.saturating_add(TAIL_SLOTS * period_ps));
+    if run.config.controller.protocol == Protocol::Xy3 {
+        // The XY3-100 step watch lets the last period out once no period followed
+        // it for this long (`shared::xy3::step::CONFIRM_NS`): the stream stopped.
+        end_ns = end_ns.saturating_add(shared::xy3::step::CONFIRM_NS);
+    }
     p.run_until(end_ns);
 
     std::fs::create_dir_all(run.output_dir).map_err(|e| SimError::Io {

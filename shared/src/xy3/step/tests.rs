@@ -70,6 +70,7 @@ fn run(lines: &[Vec<u8>], t0: u64, watch: &mut StepWatch) -> Out {
             let mut frame = None;
             let t = t0 + (i as u64 + 1) * FP;
             let restart = watch.period(t, &p, |e| match e {
+                // Only the held period, the one before, is ever released.
                 LineEvent::Frame(f) => frame = Some(f),
                 LineEvent::Fault {
                     line: Line::Framing,
@@ -84,10 +85,24 @@ fn run(lines: &[Vec<u8>], t0: u64, watch: &mut StepWatch) -> Out {
             if restart && out.restart.is_none() {
                 out.restart = Some(i);
             }
-            out.frames.push(frame);
+            out.frames.push(None);
+            if let Some(f) = frame {
+                out.frames[i - 1] = Some(f);
+            }
             out.good.push(p.all_ok());
         }
     }
+    // The stream ends: the last period, if held, goes out once due.
+    let end = t0 + out.frames.len() as u64 * FP;
+    // Only a good period is ever held.
+    assert!(watch.release_due().is_none() || out.good.last() == Some(&true));
+    watch.release(end + CONFIRM_NS - 1, |_| panic!("released early"));
+    watch.release(end + CONFIRM_NS, |e| {
+        if let (LineEvent::Frame(f), Some(last)) = (e, out.frames.last_mut()) {
+            *last = Some(f);
+        }
+    });
+    assert_eq!(watch.release_due(), None);
     out
 }
 
@@ -108,8 +123,9 @@ fn a_line_shifted_by_a_bit_restarts_the_session() {
     let out = run(&lines, 0, &mut watch);
     assert_eq!(out.frames.len(), N);
     // In step until the slip (the first two periods lock the bit offset): every
-    // period forwarded with its own values.
-    for i in 2..SLIP {
+    // period forwarded with its own values, but the last one (held for the next
+    // period to confirm it, below).
+    for i in 2..SLIP - 1 {
         assert_eq!(out.frames[i].as_ref().and_then(y), Some(value(1, i)), "{i}");
     }
     // After the slip the shifted Y passes its check now and then, with a wrong
@@ -136,6 +152,8 @@ fn a_line_shifted_by_a_bit_restarts_the_session() {
     // The restart comes once the window is 2 ms (200 periods) old.
     let first_bad = out.good.iter().skip(2).position(|g| !g).unwrap() + 2;
     assert!((SLIP..=SLIP + 1).contains(&first_bad), "{first_bad}");
+    // The good period the watch held when the first bad one came is dropped.
+    assert_eq!(out.frames[first_bad - 1], None);
     assert_eq!(out.restart, Some(first_bad + 200));
     // This run goes on without restarting: the next request comes after twice the
     // limit (backoff), 401 periods later.
@@ -238,4 +256,112 @@ fn restarts_that_do_not_help_back_off_and_a_good_run_resets() {
         assert!(!w.outcome(u64::MAX, false).1);
         assert!(!w.outcome(0, false).1);
     }
+}
+
+/// A period with X decoded as `v` (`Some`) or dead (`None`).
+fn one_line(v: Option<u32>, end: u32) -> Period {
+    use crate::xy3::rx::RxError;
+    let mut lines = [None; 5];
+    lines[0] = Some(v.map(Frame::Position24).ok_or(RxError::Dead));
+    Period { lines, end }
+}
+
+/// What the watch emitted for one call: the X values of released frames and the
+/// `Dropped` / other faults.
+#[derive(Debug, Default, PartialEq)]
+struct Emitted {
+    frames: Vec<u32>,
+    dropped: usize,
+    faults: usize,
+}
+
+impl Emitted {
+    fn sink(&mut self) -> impl FnMut(LineEvent) + '_ {
+        |e| match e {
+            LineEvent::Frame(f) => self.frames.extend(f.axis(Axis::X).map(|p| p.to_raw(20))),
+            LineEvent::Fault {
+                line: Line::Framing,
+                kind: FaultKind::Dropped,
+            } => self.dropped += 1,
+            LineEvent::Fault { .. } => self.faults += 1,
+        }
+    }
+}
+
+#[test]
+fn a_good_period_waits_for_the_next_to_confirm_it() {
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut e = Emitted::default();
+    // The first good period is held: nothing out yet.
+    assert!(!w.period(0, &one_line(Some(1), 3), e.sink()));
+    assert_eq!(e, Emitted::default());
+    assert_eq!(w.release_due(), Some(CONFIRM_NS));
+    // A good next one releases it (and is held in turn).
+    w.period(FP, &one_line(Some(2), 6), e.sink());
+    assert_eq!(e.frames, [1]);
+    // A bad next one drops it: a `Dropped` fault, then the bad period's own.
+    w.period(2 * FP, &one_line(None, 9), e.sink());
+    assert_eq!((e.frames.len(), e.dropped, e.faults), (1, 1, 1));
+    assert_eq!(w.release_due(), None);
+    // Two chance passes in a row, then the fault shows: the first gets out (the
+    // residual), the second is dropped.
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut e = Emitted::default();
+    for (k, v) in [Some(7), Some(8), None, None].into_iter().enumerate() {
+        w.period(k as u64 * FP, &one_line(v, 3 * k as u32), e.sink());
+    }
+    assert_eq!((e.frames, e.dropped, e.faults), (vec![7], 1, 2));
+}
+
+#[test]
+fn the_last_period_goes_out_once_no_period_follows_in_time() {
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut e = Emitted::default();
+    // A stream of 5 good periods that stops (its last frame may be a laser-off
+    // command): the last one waits CONFIRM_NS from its arrival, not longer.
+    for k in 0..5u64 {
+        w.period(k * FP, &one_line(Some(k as u32), 3 * k as u32), e.sink());
+    }
+    assert_eq!(e.frames, [0, 1, 2, 3]);
+    let last = 4 * FP;
+    assert_eq!(w.release_due(), Some(last + CONFIRM_NS));
+    w.release(last + CONFIRM_NS - 1, e.sink());
+    assert_eq!(e.frames, [0, 1, 2, 3]);
+    w.release(last + CONFIRM_NS, e.sink());
+    assert_eq!(e.frames, [0, 1, 2, 3, 4]);
+    // Released once only; a later release or bad period has nothing to settle.
+    w.release(u64::MAX, e.sink());
+    w.period(u64::MAX, &one_line(None, 15), e.sink());
+    assert_eq!((e.frames.len(), e.dropped, e.faults), (5, 0, 1));
+    // Time going backwards releases nothing (and does not panic).
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    w.period(u64::MAX, &one_line(Some(9), 3), e.sink());
+    w.release(0, e.sink());
+    assert_eq!(e.frames.len(), 5);
+    // A withheld (suspect) good period is never held: nothing to release.
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    for k in 0..u64::from(SUSPECT_BAD) {
+        w.period(k * FP, &one_line(None, 0), e.sink());
+    }
+    w.period(10 * FP, &one_line(Some(1), 0), e.sink());
+    assert_eq!(w.release_due(), None);
+    assert_eq!(e.dropped, 1);
+}
+
+/// The cost on a noisy but in-step line: an isolated bad period also drops the
+/// good one before it (2 periods lost, no more); a burst of SUSPECT_BAD withholds
+/// a good run after it as before.
+#[test]
+fn noise_costs_the_period_before_each_bad_one() {
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut e = Emitted::default();
+    // One bad period in 50, for 100 000 periods: 2 000 bad, 2 000 dropped.
+    let n = 100_000u64;
+    for k in 0..n {
+        let v = (k % 50 != 49).then_some(k as u32 & 0xF_FFFF);
+        assert!(!w.period(k * FP, &one_line(v, 3 * k as u32), e.sink()));
+    }
+    w.release(n * FP + CONFIRM_NS, e.sink());
+    assert_eq!((e.faults, e.dropped), (2_000, 2_000));
+    assert_eq!(e.frames.len(), 96_000);
 }
