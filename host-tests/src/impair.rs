@@ -320,9 +320,12 @@ pub fn gap(
 /// One XY3-100 SPI slave's clock glitch: from the clock pulse that starts at or
 /// after `at_ps`, the SCK of data line `line` ([`crate::line::roles::spi_sck`],
 /// made from `clk` if the waveform has none yet) sees `edges` extra falling edges
-/// (a spike pair in that pulse's low half, which the slave samples: the bit there
-/// counts `1 + edges` times) or, negative, misses the next `-edges` pulses (those
-/// bits are never sampled). The shared `clk` and the other slaves are unchanged,
+/// (spike pairs in the low time after that pulse, up to the next rising edge: the
+/// bit there counts `1 + edges` times) or, negative, misses the next `-edges`
+/// pulses (those bits are never sampled). On a frame's last pulse that low time
+/// is the gap to the next frame, where NSS is high: the slave samples only the
+/// spikes after NSS falls again (a test's rule must count the sampled edges,
+/// not `edges`). The shared `clk` and the other slaves are unchanged,
 /// so that line's SPI falls out of step with the others
 /// (`shared::xy3::step`).
 pub fn sck_glitch(

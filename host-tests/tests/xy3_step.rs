@@ -223,12 +223,38 @@ fn states_after_running(p: &Pipeline) -> Vec<(u64, LinkState)> {
     s[first..].iter().map(|c| (c.t_ns, c.value)).collect()
 }
 
-/// Whether a glitch of `edges` clock edges leaves its line out of step until a
-/// restart: a slave that keeps partial bytes carries any bit shift on; one that
-/// drops them at NSS release loses a whole byte when the frame ends short
-/// (missed edges), but drops up to 7 extra bits with the frame that had them.
-fn persists(partial: PartialByte, edges: i32) -> bool {
-    partial == PartialByte::CarryOver || !(0..8).contains(&edges)
+/// The clock edges a slave on `sck` samples in each frame (NSS low, up to and
+/// including that frame's NSS rise; index 0 is before the first rise): the
+/// slave ignores an edge while NSS is high.
+fn sampled_per_frame(w: &Waveform, sck: &str) -> Vec<u32> {
+    let nss = w.get(roles::SYNC).expect("SYNC");
+    let ends: Vec<Ps> = nss.rising_edges().collect();
+    let mut n = vec![0u32; ends.len() + 1];
+    let sck = w.get(sck).expect("SCK");
+    for t in sck.falling_edges().filter(|&t| !nss.level_at(t)) {
+        n[ends.partition_point(|&e| e <= t)] += 1;
+    }
+    n
+}
+
+/// Whether the glitch on `line` in `w` leaves that line out of step until a
+/// restart, from the edges its slave *samples* against the shared clock's: a
+/// slave that keeps partial bytes carries any bit shift on; one that drops them
+/// at NSS release is out of step only when some frame ends with another number
+/// of whole bytes (8 or more extra edges in that frame, or any missed one) and
+/// drops up to 7 extra bits with the frame that had them. Not the glitch's
+/// nominal edge count: the spikes of a glitch on a frame's last pulse fall in
+/// the gap to the next frame, where NSS is high for most of it, and the slave
+/// samples only those after NSS falls again (case 169 of 400 with the seed
+/// below: +9 edges, one sampled; see [`glitch_on_a_frames_last_pulse`]).
+fn persists(w: &Waveform, line: &str, partial: PartialByte) -> bool {
+    let clk = sampled_per_frame(w, roles::CLK);
+    let own = sampled_per_frame(w, &roles::spi_sck(line));
+    assert_eq!(clk.len(), own.len());
+    match partial {
+        PartialByte::Discard => clk.iter().zip(&own).any(|(c, o)| c / 8 != o / 8),
+        PartialByte::CarryOver => clk.iter().sum::<u32>() != own.iter().sum::<u32>(),
+    }
 }
 
 /// DMA half duration for `size` frames at [`PERIOD_PS`], ns.
@@ -287,6 +313,7 @@ fn glitched_line_restarts_the_session() {
         let run = Run::new(&c, &t, &sent, &model, |w| {
             impair::sck_glitch(w, roles::CLK, line, at_ps, edges).expect("glitch");
         });
+        let lasting = persists(&run.stim.wave, line, partial);
         let at_ns = at_ps / 1000;
         let carried = run.carried(&c, Some(faulty), &label);
         let esc = Escapes::of(&carried);
@@ -299,7 +326,7 @@ fn glitched_line_restarts_the_session() {
             // until the new session runs. A shift the slaves drop at the frame
             // end costs no more than that frame (the next one replaces it).
             assert_eq!(running, 1, "{label}");
-            assert_eq!(held > 0, last && persists(partial, edges), "{label}");
+            assert_eq!(held > 0, last && lasting, "{label}");
         }
         let states = states_after_running(&run.p);
         // (d) never parked.
@@ -310,7 +337,7 @@ fn glitched_line_restarts_the_session() {
         let dropped = run.framing(FaultKind::Dropped);
         let resyncs = run.framing(FaultKind::Resync);
         assert_eq!(resyncs as usize, run.sessions.len() - 1, "{label}");
-        if !persists(partial, edges) {
+        if !lasting {
             assert_eq!(run.sessions.len(), 1, "{label}: {:?}", run.sessions);
             // The bad period drops the good one the watch held for its
             // confirmation (when the period before the bad one was good).
@@ -460,6 +487,120 @@ fn glitched_line_restarts_the_session() {
     // eight for 24-bit frames); the watch must have withheld them.
     assert!(withheld_total > 0, "no period withheld in any case");
     assert_eq!(escapes, GLITCH_ESCAPES, "(case, frames after the glitch's)");
+}
+
+/// Case 169 of [`glitched_line_restarts_the_session`] run with 400 cases (32-bit
+/// frames, slaves dropping partial bytes, +9 edges on Z), pinned: the glitch hit
+/// a frame's last clock pulse, so its spikes fall in the gap to the next frame.
+/// NSS is high there for all but the last of them, and the slave samples only
+/// that one: a single extra bit in the next frame, dropped at that frame's end,
+/// so the line is never out of step and nothing asks for a restart (a test-model
+/// matter: the rule's nominal edge count was wrong, not the receiver or the
+/// watch). Against it, the same glitch one pulse earlier (all 9 spikes sampled:
+/// an extra byte) restarts; with slaves that keep partial bytes the one sampled
+/// bit shifts the line for good and restarts too, and a +1 glitch there is not
+/// sampled at all.
+#[test]
+fn glitch_on_a_frames_last_pulse() {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x1A57);
+    let c = config();
+    let t = timing(FrameSize::Bits32);
+    let sent = frames(&c, &t, 3_000, &mut rng);
+    let clean = stimulus::controller_signal(&c, &sent, &t)
+        .expect("stimulus")
+        .wave;
+    // Frame f ends at the f-th NSS rise (0-based); its last two clock pulses.
+    let f = 1_000;
+    let end = clean
+        .get(roles::SYNC)
+        .expect("SYNC")
+        .rising_edges()
+        .nth(f)
+        .expect("frame end");
+    let pulses: Vec<Ps> = clean
+        .get(roles::CLK)
+        .expect("CLK")
+        .rising_edges()
+        .filter(|&r| r < end)
+        .collect();
+    let (last, before) = (pulses[pulses.len() - 1], pulses[pulses.len() - 2]);
+    let faulty = 2;
+    let line = LINES[faulty];
+    // (partial, edges, pulse) -> (frame, extra edges sampled), lasting shift.
+    let cases = [
+        (PartialByte::Discard, 9, last, (f + 1, 1), false),
+        (PartialByte::Discard, 9, before, (f, 9), true),
+        (PartialByte::CarryOver, 9, last, (f + 1, 1), true),
+        (PartialByte::CarryOver, 1, last, (0, 0), false),
+    ];
+    for (partial, edges, at_ps, extra, lasting) in cases {
+        let label = format!("{partial:?} {edges:+} at {at_ps} ps");
+        let model = SessionModel {
+            partial,
+            ..SessionModel::default()
+        };
+        let run = Run::new(&c, &t, &sent, &model, |w| {
+            impair::sck_glitch(w, roles::CLK, line, at_ps, edges).expect("glitch");
+        });
+        let w = &run.stim.wave;
+        // What the glitched slave sampled beyond the shared clock, per frame.
+        let clk = sampled_per_frame(w, roles::CLK);
+        let own = sampled_per_frame(w, &roles::spi_sck(line));
+        let diff: Vec<(usize, u32)> = clk
+            .iter()
+            .zip(&own)
+            .enumerate()
+            .filter(|(_, (c, o))| c != o)
+            .map(|(k, (c, o))| (k, o - c))
+            .collect();
+        let want: Vec<(usize, u32)> = if extra.1 == 0 { vec![] } else { vec![extra] };
+        assert_eq!(diff, want, "{label}");
+        assert_eq!(persists(w, line, partial), lasting, "{label}");
+        // The glitched line alone, against the clean run: same byte count
+        // (Discard, a spare bit dropped; or nothing sampled), and only the
+        // frame with the extra bit differs.
+        let spi = |w: &Waveform| {
+            host_tests::line::sample::xy3_spi_session(w, &[line], partial, 0)
+                .expect("spi")
+                .bytes
+                .remove(0)
+        };
+        let (got, want) = (spi(w), spi(&clean));
+        let differing: Vec<usize> = (0..got.len().min(want.len()))
+            .filter(|&i| got[i] != want[i])
+            .collect();
+        if !lasting {
+            assert_eq!(got.len(), want.len(), "{label}");
+            assert!(
+                differing.iter().all(|&i| i / 4 == extra.0),
+                "{label}: bytes {differing:?} differ"
+            );
+        } else {
+            assert!(differing.len() > 100, "{label}: {} differ", differing.len());
+        }
+        // The pipeline: no frame never sent reaches the head.
+        let carried = run.carried(&c, Some(faulty), &label);
+        let requests = run.p.xy3_restart_requests();
+        if lasting {
+            assert_eq!(requests.len(), 1, "{label}: {requests:?}");
+            assert_eq!(run.sessions.len(), 2, "{label}");
+            let r = requests[0];
+            assert!(
+                r >= at_ps / 1000 + OUT_OF_STEP_NS,
+                "{label}: asked at {r} ns"
+            );
+        } else {
+            assert!(requests.is_empty(), "{label}: {requests:?}");
+            assert_eq!(run.sessions.len(), 1, "{label}");
+            assert!(carried.iter().all(|o| !o.escape), "{label}");
+            assert!(run.framing(FaultKind::Dropped) <= 1, "{label}");
+            let states = states_after_running(&run.p);
+            assert!(
+                states.iter().all(|s| s.1 == LinkState::Running),
+                "{label}: {states:?}"
+            );
+        }
+    }
 }
 
 /// (e) A line that stays broken (stuck at either level) cannot be fixed by a
