@@ -767,7 +767,7 @@ impl HansRx {
         // every check of this frame used the record as it was
         // (`confirm::excursion`).
         if let Some(tail) = measured.tail {
-            self.timing.count_far(tail);
+            self.timing.count_tail(tail);
         }
         // A young lock decodes and tracks, but publishes nothing yet (acquisition,
         // see `timing::SETTLED`), nor does a coasted one before a verified frame
@@ -1355,7 +1355,7 @@ struct Checked {
     /// A settled lock's tail that passed the bounds of [`confirm::tail`],
     /// whether or not [`confirm::excursion`] rejected it: its far and off
     /// edges are what the line's record counts for the reference
-    /// (`Timing::count_far`). `None` when no tail was measured.
+    /// (`Timing::count_tail`). `None` when no tail was measured.
     tail: Option<confirm::Tail>,
 }
 

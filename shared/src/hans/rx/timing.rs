@@ -213,11 +213,15 @@ impl Timing {
     /// Counts a settled frame's reference tail's far and off edges into the
     /// rates [`Timing::clean`] and [`Timing::steady`] read (a sixteenth of the
     /// way, rounded so that each rate decays to 0).
-    pub fn count_far(&mut self, tail: super::confirm::Tail) {
-        let far = tail.far.min(super::confirm::FAR_EDGES) as u16;
-        self.far = self.far - self.far.div_ceil(16) + far * (4096 / 16);
-        let off = tail.off.min(super::confirm::FAR_EDGES) as u16;
-        self.off = self.off - self.off.div_ceil(16) + off * (4096 / 16);
+    pub fn count_tail(&mut self, tail: super::confirm::Tail) {
+        // One tail's count weighs at most `FAR_EDGES`, so the rate stays within
+        // its type (16 x 4 x 256 at most).
+        let blend = |rate: u16, edges: u32| {
+            let edges = edges.min(super::confirm::FAR_EDGES) as u16;
+            rate - rate.div_ceil(16) + edges * (4096 / 16)
+        };
+        self.far = blend(self.far, tail.far);
+        self.off = blend(self.off, tail.off);
     }
 
     /// True when the recent settled frames' tails held (nearly) no off edges:
@@ -758,31 +762,31 @@ mod tests {
             let after = |t: &mut Timing| {
                 (0..40).position(|_| {
                     let now = state(t);
-                    t.count_far(edges(0));
+                    t.count_tail(edges(0));
                     now
                 })
             };
             assert_eq!(after(&mut t), Some(11), "{t:?}");
-            t.count_far(edges(1));
+            t.count_tail(edges(1));
             assert!(!state(&t));
             let again = after(&mut t);
             assert!(again.is_some_and(|n| n >= 11), "{again:?} {t:?}");
             for k in 0..300 {
-                t.count_far(edges(u32::from(k % 3 == 0)));
+                t.count_tail(edges(u32::from(k % 3 == 0)));
                 assert!(k < 2 || !state(&t), "{k}");
             }
             for _ in 0..300 {
-                t.count_far(edges(u32::MAX));
+                t.count_tail(edges(u32::MAX));
                 assert!(!state(&t));
             }
         }
         let mut t = relocked();
         for _ in 0..20 {
-            t.count_far(far(8));
+            t.count_tail(far(8));
         }
         assert!(!t.clean() && t.steady());
         for _ in 0..100 {
-            t.count_far(off(8));
+            t.count_tail(off(8));
         }
         assert!(t.clean() && !t.steady());
     }
