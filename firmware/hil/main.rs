@@ -32,7 +32,7 @@ mod tests {
     use embassy_stm32::timer::low_level::{InputCaptureMode, InputTISelection, Timer};
     use embassy_stm32::timer::{self, Ch1, Ch4, Channel as TimChannel, TimerPin};
     use embassy_stm32::usart::{RingBufferedUartRx, Uart, UartTx};
-    use embassy_stm32::{bind_interrupts, dma, pac, peripherals, usart, Peri};
+    use embassy_stm32::{dma, pac, peripherals, Peri};
     use embassy_time::{with_timeout, Duration};
     use shared::hans::frame::{write_slot, Frame, RING_BYTES};
     use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
@@ -59,34 +59,13 @@ mod tests {
     use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
     use xy_bridge::drivers::status_level::{StatusIn, StatusOut};
     use xy_bridge::drivers::status_word_out::{StatusWordOut, FRAME_BITS};
-    use xy_bridge::drivers::sync_marks::{SyncEdgeHandler, SyncMarks};
+    use xy_bridge::drivers::sync_marks::SyncMarks;
     use xy_bridge::drivers::wave_out::WaveOut;
     use xy_bridge::drivers::xy2_sampler::Xy2Sampler;
+    use xy_bridge::tasks::Irqs;
     use xy_bridge::{dma_ring, hans_rings};
 
     use super::Prng;
-
-    bind_interrupts!(struct Irqs {
-        DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
-        DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
-        DMA1_STREAM2 => dma::InterruptHandler<peripherals::DMA1_CH2>;
-        DMA1_STREAM3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
-        DMA1_STREAM4 => dma::InterruptHandler<peripherals::DMA1_CH4>;
-        DMA1_STREAM5 => dma::InterruptHandler<peripherals::DMA1_CH5>;
-        DMA1_STREAM6 => dma::InterruptHandler<peripherals::DMA1_CH6>;
-        DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
-        DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
-        DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
-        DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
-        DMA2_STREAM4 => dma::InterruptHandler<peripherals::DMA2_CH4>;
-        DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
-        DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;
-        DMA2_STREAM7 => dma::InterruptHandler<peripherals::DMA2_CH7>;
-        BDMA_CHANNEL0 => dma::InterruptHandler<peripherals::BDMA_CH0>;
-        EXTI4 => SyncEdgeHandler;
-        UART7 => usart::InterruptHandler<peripherals::UART7>;
-        USART2 => usart::InterruptHandler<peripherals::USART2>;
-    });
 
     /// Head-side port-D bits used here: pair 1, 2, 3.
     const P1: u32 = 0;

@@ -18,6 +18,7 @@ use crate::channels::{
     HansStatusRaw, RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_CONTIGUOUS, HANS_STATUS_RAW,
     RAW_INPUT, STATS, XY2_HALF, XY3_HALF, XY3_INPUT, XY3_LINES, XY3_MARKS, XY3_RESYNC,
 };
+use crate::dma_ring;
 use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::{Instance, RxError, SpiSlaveRx};
 use crate::drivers::status_word_out::StatusWordOut;
@@ -35,7 +36,6 @@ use shared::hans::follow;
 use shared::model::Axis;
 use shared::xy3::rx::Lines;
 use static_cell::StaticCell;
-use xy_bridge::dma_ring;
 
 /// The STATUS word stream's channel, kept for as long as its transfer runs (forever).
 static STATUS_DMA_SLOT: StaticCell<Option<dma::Channel<'static>>> = StaticCell::new();
