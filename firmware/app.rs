@@ -9,7 +9,7 @@ use embassy_executor::{InterruptExecutor, SendSpawner, Spawner};
 use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
-use embassy_stm32::peripherals::{IWDG1, PA0, PF8, PG9};
+use embassy_stm32::peripherals::{IWDG1, PA0, PF11, PF15, PF8, PG9};
 use embassy_stm32::usart::{Uart, UartRx};
 use embassy_stm32::Peri;
 use shared::bridge::{Config, StatusForm};
@@ -102,12 +102,8 @@ pub fn spawn_bridge(spawner: Spawner, ex: Executors, config: Config, r: Resource
     let roles = Roles::of(&config);
     defmt::info!("configuration: {}", roles);
 
-    // Head-side drivers stay off until an output DMA plays its idle pattern.
-    let head_enable = Output::new(r.head_enable, Level::Low, Speed::Low);
+    let head_enable = head_drivers(r.head_enable, r.head_mux, roles.head);
     let hans_head = roles.head == Head::Hans;
-    // Kept for good: dropping an `Output` turns the pin back into an unconnected
-    // input, and the mux select would float.
-    core::mem::forget(Output::new(r.head_mux, Level::from(hans_head), Speed::Low));
 
     // The HANS-100 oversampling clock (TIM3), with the output of each HANS input
     // that runs; PC6 drives the controller-side SCK bus only for a HANS controller.
@@ -204,6 +200,20 @@ pub fn spawn_bridge(spawner: Spawner, ex: Executors, config: Config, r: Resource
             ex.decode.spawn(status::hans_status().unwrap());
         }
     }
+}
+
+/// The head-side line drivers: their enable (PF11), returned off for the output
+/// loop to switch on once its DMA plays the idle pattern, and the mux select (PF15)
+/// for `head`'s source, driven for good (dropping an `Output` would turn the pin back
+/// into an unconnected input, and the select would float).
+pub fn head_drivers(
+    enable: Peri<'static, PF11>,
+    mux: Peri<'static, PF15>,
+    head: Head,
+) -> Output<'static> {
+    let hans = head == Head::Hans;
+    core::mem::forget(Output::new(mux, Level::from(hans), Speed::Low));
+    Output::new(enable, Level::Low, Speed::Low)
 }
 
 /// The XY2-100 controller side: the input line task (TIM1 sampler halves to the

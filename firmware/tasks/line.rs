@@ -1,4 +1,4 @@
-//! High-priority line tasks, run by the line `InterruptExecutor` (`main.rs`): one task
+//! High-priority line tasks, run by the line `InterruptExecutor` (`app.rs`): one task
 //! per receiver moves each DMA half-buffer towards the bridge loops ([`super::bridge`],
 //! [`super::bridge_hans`]) or the HANS STATUS decoder (decode executor). Each loop iteration is one DMA
 //! half, so these tasks preempt everything in thread mode but never block each other
@@ -69,6 +69,8 @@ const STATUS_WORD_RING: usize = 2 * XY2_HALF;
 /// controller ([`super::ctrl_word`]), refreshed after every half.
 #[embassy_executor::task]
 pub async fn xy2_in(r: Xy2InRes, word: Option<WordOut>) {
+    // Kept for as long as the task runs (forever): the samples read these pins.
+    let _data = r.data.inputs();
     let ring = dma_ring!(".sram2", u16, 2 * XY2_HALF);
     let mut sampler = Xy2Sampler::prepare(r.tim, r.clk, r.dma, Irqs, pac::GPIOG, ring);
     let mut ctrl_word = None;

@@ -1,7 +1,7 @@
 //! Tasks, in three priorities (README "Tasks and executors"). Thread mode (this
 //! file, [`stats`], most of [`status`]): the supervisor (watchdog, laser gate,
 //! health), the status LEDs, the once-a-second statistics, the slow status paths.
-//! Decode executor (medium priority, `main.rs`): the HANS-100 decoders
+//! Decode executor (medium priority, `app.rs`): the HANS-100 decoders
 //! ([`hans_in::hans_decode`], [`status::hans_status`]) under the load governor
 //! ([`governor`]), which keeps them from starving thread mode. Line executor (high
 //! priority, [`line`], [`bridge`], [`bridge_hans`]): the per-DMA-half receive ->
@@ -173,8 +173,8 @@ pub(crate) async fn leds(
 /// at 921600 baud between reads).
 const BACK_RING: usize = 1024;
 
-/// The head backchannel's receive ring in SRAM3 (USART2 RX, DMA1 S5). Called once,
-/// by `main`.
+/// The head backchannel's receive ring in SRAM3 (USART2 RX, DMA1 S5). Called once
+/// per boot, by `app::head_xy3_backchannel`.
 pub(crate) fn back_ring() -> &'static mut [u8; BACK_RING] {
     crate::dma_ring!(".sram3", u8, BACK_RING)
 }
