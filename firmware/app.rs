@@ -9,13 +9,13 @@ use embassy_executor::{InterruptExecutor, SendSpawner, Spawner};
 use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
-use embassy_stm32::peripherals::{IWDG1, PA0, PF11, PF15, PF8, PG9};
+use embassy_stm32::peripherals::{DMA1_CH5, IWDG1, PA0, PD6, PF11, PF15, PF8, PG9, USART2};
 use embassy_stm32::usart::{Uart, UartRx};
 use embassy_stm32::Peri;
 use shared::bridge::{Config, StatusForm};
 use shared::hans::rx::Mode as HansMode;
 
-use crate::board::{HeadBackRes, Resources, WaveRes, Xy2InRes};
+use crate::board::{Resources, WaveRes, Xy2InRes};
 use crate::config::{Controller, Head, Roles};
 use crate::drivers::{backchannel, oversample_clock};
 use crate::tasks::{self, bridge, bridge_hans, hans_in, hans_status_out, line, status};
@@ -175,7 +175,8 @@ pub fn spawn_bridge(spawner: Spawner, ex: Executors, config: Config, r: Resource
     match roles.head {
         Head::Xy2 | Head::Xy3 => {
             if roles.head == Head::Xy3 {
-                head_xy3_backchannel(spawner, &config, r.head_back);
+                let b = r.head_back;
+                head_xy3_backchannel(spawner, &config, b.uart, b.rx, b.rx_dma);
             }
             head_wave(
                 spawner,
@@ -255,9 +256,16 @@ pub fn controller_xy2(
 /// The XY3-100 head's backchannel on its own UART (USART2 RX, thread mode), at its
 /// own rate: the controller's power-up rate until the bridge forwards a BACK_RATE
 /// command.
-pub fn head_xy3_backchannel(spawner: Spawner, config: &Config, b: HeadBackRes) {
+/// (`board::HeadBackRes` without its TX, which is the HIL tests'.)
+pub fn head_xy3_backchannel(
+    spawner: Spawner,
+    config: &Config,
+    uart: Peri<'static, USART2>,
+    rx: Peri<'static, PD6>,
+    rx_dma: Peri<'static, DMA1_CH5>,
+) {
     let back_config = backchannel::config(config.controller.xy3.back_rate.baud());
-    match UartRx::new(b.uart, b.rx, b.rx_dma, tasks::Irqs, back_config) {
+    match UartRx::new(uart, rx, rx_dma, tasks::Irqs, back_config) {
         Ok(rx) => {
             let rx = backchannel::head_rx(rx, tasks::back_ring());
             spawner.spawn(status::back_from_head(rx).unwrap());

@@ -480,9 +480,10 @@ mod tests {
         }
     }
 
-    /// XY2-100 frames end to end, driver to driver (the bridge tasks live in the
-    /// firmware binary): `shared::xy2::tx` encodes 100 frame periods at the firmware's
-    /// head geometry ([`xy2_head_tx`]), `WaveOut` plays them (TIM8 -> GPIOD BSRR),
+    /// XY2-100 frames end to end, driver to driver (through the bridge tasks:
+    /// `bridge_tasks_xy2_to_xy3_end_to_end`): `shared::xy2::tx` encodes 100 frame
+    /// periods at the firmware's head geometry ([`xy2_head_tx`]), `WaveOut` plays
+    /// them (TIM8 -> GPIOD BSRR),
     /// `Xy2Sampler` takes port G on every CLK falling edge (TIM1 ETR -> DMA2 S0) and
     /// `shared::xy2::rx::Receiver` with the firmware's controller pin map (SYNC PG0,
     /// X PG1, Y PG2) must give back every frame in order; the period whose X word has
@@ -1779,7 +1780,7 @@ mod tests {
     /// Frames per half of the source's ring (0.5 ms).
     const SRC_FRAMES: usize = 50;
 
-    /// A test-only XY2-100 controller: TIM4's update event requests one DMA2 stream 3
+    /// A test-only XY2-100 controller: TIM4's update event requests one DMA1 stream 6
     /// transfer per tick (DMAMUX request TIM4_UP) that writes the next word of a
     /// circular ring into GPIOE's BSRR, as `WaveOut` does on TIM8 for the head side
     /// (TIM4 is free in every pairing, and `WaveOut` is built for TIM1 / TIM8 only;
@@ -1806,7 +1807,7 @@ mod tests {
         /// Starts playing `idle` from the ring (no clock edges until frames are
         /// written).
         fn start(
-            dma: Peri<'static, peripherals::DMA2_CH3>,
+            dma: Peri<'static, peripherals::DMA1_CH6>,
             ring: &'static mut [u32],
             idle: u32,
         ) -> Self {
@@ -1920,29 +1921,34 @@ mod tests {
 
     /// The whole bridge through its own tasks, for the baked default pairing
     /// (`bridge.toml`: XY2-100 controller -> XY3-100 head, 16 -> 20 bits, axis map
-    /// identity, Z from the input, free-running at 100 kHz): the firmware's
-    /// `app` functions spawn the supervisor, LEDs and statistics, `line::xy2_in` and
-    /// `bridge_wave_out` in the line executor and the STATUS-level and head
-    /// backchannel tasks, as `main` does for this pairing. [`Xy2Source`] plays
-    /// 30 000 frames from `shared::xy2::tx` into the controller-side XY2 input
-    /// (frame 12 345 with its X parity bit flipped); the head's XY3-100 output is
-    /// received by the controller-side XY3 SPI slaves (X, Y, Z) and SYNC marks,
-    /// which this pairing leaves free, and decoded by `shared::xy3::rx::Receiver`;
-    /// UART7 plays the head's backchannel (a status packet every 20 ms), which the
-    /// gate waits for (`failsafe.status_timeout_us`).
+    /// identity, Z from the input, free-running at 100 kHz): the firmware's `app`
+    /// functions spawn the supervisor (watchdog, laser gate), LEDs and statistics,
+    /// `line::xy2_in` and `bridge_wave_out` in the line executor, the STATUS level
+    /// and head backchannel tasks, as `app::spawn_bridge` does for this pairing.
+    /// [`Xy2Source`] plays 30 000 frames from `shared::xy2::tx` into the
+    /// controller-side XY2 input (frame 12 345 with its X parity bit flipped); the
+    /// head's XY3-100 output is received by the controller-side XY3 SPI slaves (X, Y,
+    /// Z) and SYNC marks, which this pairing leaves free, and decoded by
+    /// `shared::xy3::rx::Receiver`; UART7 plays the head's backchannel (a status
+    /// packet every 20 ms), which the gate waits for (`failsafe.status_timeout_us`).
+    ///
     /// Checks: no head frame before the input's; then every head period decodes and
-    /// is a frame sent, translated (X, Y, Z each `v << 4`: MSB-aligned, spec
-    /// "Configuration"), never going back, in steps of at most 8 frames, at least
-    /// 60 % of the frames distinct, the first one at the end of the recovery run
-    /// (`failsafe.recovery_frames`), the last ones reaching the head, then the park
-    /// position and nothing else; the flipped frame never; the laser gate (PF13 pad)
-    /// off before the input, on within 10 ms of it and on until it stops, off within
-    /// 6 ms after and for good; the STATUS towards the controller (PA0) "fault"
-    /// before, "OK" within 200 ms of the input and until it stops, "fault" again
-    /// within 250 ms after. Jumpers: source PE2 -> PE7, PE3 -> PG0, PE4 -> PG1,
-    /// PE9 -> PG2, PE10 -> PG3; head PD0 (SYNC) -> PA15, PE11, PF6 and PA4, PD1
-    /// (CLK) -> PC10, PE12, PF7, PD2 (X) -> PC12, PD3 (Y) -> PE14, PD10 (Z) -> PF9;
-    /// head backchannel PE8 -> PD6.
+    /// is a frame sent, translated (X, Y, Z each `v << 4`: positions are MSB-aligned,
+    /// `xy3-100-notes.md` "Summary"), never going back, in steps of at most 4
+    /// frames, at least 60 % of the frames distinct (free-running at the input's
+    /// rate, a batch of 20 slots that drains a half of 25 frames skips 5: ~80 %
+    /// expected, README "Added latency"), the first one at the end of the recovery
+    /// run (`failsafe.recovery_frames`), the last ones reaching the head, then the
+    /// park position and nothing else; the flipped frame never; the laser gate (PF13
+    /// pad) off before the input, on within 10 ms of it and on until it stops, off
+    /// within 6 ms after and for good; the STATUS towards the controller (PA0)
+    /// "fault" before, "OK" within 200 ms of the input and until it stops, "fault"
+    /// again within 250 ms after.
+    ///
+    /// Jumpers: source PE2 -> PE7, PE3 -> PG0, PE4 -> PG1, PE9 -> PG2, PE10 -> PG3;
+    /// head PD0 (SYNC) -> PA15, PE11, PF6 and PA4, PD1 (CLK) -> PC10, PE12 and PF7,
+    /// PD2 (X) -> PC12, PD3 (Y) -> PE14, PD10 (Z) -> PF9; head backchannel PE8 ->
+    /// PD6.
     #[test]
     #[timeout(20)]
     async fn bridge_tasks_xy2_to_xy3_end_to_end(board: Board) {
@@ -2010,8 +2016,68 @@ mod tests {
         .await;
         let r = board.res;
 
-        // Head side read back: SPI3 (X), SPI4 (Y), SPI5 (Z) slaves, selected by the
-        // head's SYNC, ready before the bridge starts (no clock edges while it idles).
+        // The head backchannel's USART2 goes to the firmware but its TX DMA stream
+        // (DMA1 S6, the HIL's) to the source: DMA1 carries nothing else fast here.
+        let hb = r.head_back;
+        // The controller side's source, idle.
+        let tx = Xy2Tx::new(SRC_PINS, SRC_TPF, link).unwrap();
+        let mut source = Xy2Source::start(
+            hb.tx_dma,
+            dma_ring!(".sram1", u32, 2 * SRC_FRAMES * SRC_TPF),
+            tx.idle_word(),
+        );
+        // The head's backchannel.
+        let mut head_back = UartTx::new(
+            r.back.uart,
+            r.back.tx,
+            r.back.tx_dma,
+            Irqs,
+            backchannel::config(config.controller.xy3.back_rate.baud()),
+        )
+        .unwrap();
+
+        // The firmware's tasks for this pairing, spawned as `app::spawn_bridge` does.
+        let leds = [board.led_green, board.led_yellow, board.led_red];
+        app::spawn_supervision(spawner, board.iwdg, board.laser_gate, leds, false);
+        let ex = Executors::start();
+        let head_enable = app::head_drivers(r.head_enable, r.head_mux, roles.head);
+        app::controller_xy2(spawner, ex, &config, r.xy2_in, r.ctrl_status, r.back.de);
+        app::head_xy3_backchannel(spawner, &config, hb.uart, hb.rx, hb.rx_dma);
+        app::head_wave(
+            spawner,
+            ex,
+            &config,
+            roles,
+            r.wave,
+            head_enable,
+            r.head_status,
+        );
+
+        // The bridge switches the head drivers on once its idle pattern plays; the
+        // mux select stays driven low (waveform).
+        let pf = pac::GPIOF;
+        let t0 = Instant::now();
+        while pf.odr().read().odr(11) != pac::gpio::vals::Odr::HIGH {
+            assert!(
+                t0.elapsed() < Duration::from_millis(100),
+                "head drivers never enabled"
+            );
+            embassy_time::Timer::after_micros(100).await;
+        }
+        assert_eq!(
+            pf.moder().read().moder(15),
+            pac::gpio::vals::Moder::OUTPUT,
+            "PF15 released"
+        );
+        assert_eq!(
+            pf.odr().read().odr(15),
+            pac::gpio::vals::Odr::LOW,
+            "PF15 not on the waveform"
+        );
+        // Head side read back, started now that the head's lines idle (SYNC high,
+        // CLK low; before, the unconfigured pins floated): SPI3 (X), SPI4 (Y), SPI5
+        // (Z) slaves selected by the head's SYNC, and the SYNC marks, whose every
+        // rising edge from here is a frame end.
         let i = r.xy3_in;
         let (lx, ly, lz) = (i.x, i.y, i.z);
         let mut rx_lines = [
@@ -2046,62 +2112,6 @@ mod tests {
             )
             .unwrap(),
         ];
-        // The controller side's source, idle.
-        let tx = Xy2Tx::new(SRC_PINS, SRC_TPF, link).unwrap();
-        let mut source = Xy2Source::start(
-            r.hans_out.dma,
-            dma_ring!(".sram1", u32, 2 * SRC_FRAMES * SRC_TPF),
-            tx.idle_word(),
-        );
-        // The head's backchannel.
-        let mut head_back = UartTx::new(
-            r.back.uart,
-            r.back.tx,
-            r.back.tx_dma,
-            Irqs,
-            backchannel::config(config.controller.xy3.back_rate.baud()),
-        )
-        .unwrap();
-
-        // The firmware's tasks for this pairing, spawned as `app::spawn_bridge` does.
-        let leds = [board.led_green, board.led_yellow, board.led_red];
-        app::spawn_supervision(spawner, board.iwdg, board.laser_gate, leds, false);
-        let ex = Executors::start();
-        let head_enable = app::head_drivers(r.head_enable, r.head_mux, roles.head);
-        app::controller_xy2(spawner, ex, &config, r.xy2_in, r.ctrl_status, r.back.de);
-        app::head_xy3_backchannel(spawner, &config, r.head_back);
-        app::head_wave(
-            spawner,
-            ex,
-            &config,
-            roles,
-            r.wave,
-            head_enable,
-            r.head_status,
-        );
-
-        // The bridge switches the head drivers on once its idle pattern plays; the
-        // mux select stays driven low (waveform).
-        let pf = pac::GPIOF;
-        let t0 = Instant::now();
-        while pf.odr().read().odr(11) != pac::gpio::vals::Odr::HIGH {
-            assert!(
-                t0.elapsed() < Duration::from_millis(100),
-                "head drivers never enabled"
-            );
-            embassy_time::Timer::after_micros(100).await;
-        }
-        assert_eq!(
-            pf.moder().read().moder(15),
-            pac::gpio::vals::Moder::OUTPUT,
-            "PF15 released"
-        );
-        assert_eq!(
-            pf.odr().read().odr(15),
-            pac::gpio::vals::Odr::LOW,
-            "PF15 not on the waveform"
-        );
-        // SYNC idles high from now on: marks from here are frame ends.
         let mut marks = SyncMarks::new(i.sync, i.exti, Irqs, 1024);
 
         let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
@@ -2319,7 +2329,7 @@ mod tests {
         );
         assert!(log.max_step <= 4, "a step of {} frames", log.max_step);
         assert!(
-            log.distinct >= (N - recovery) * 9 / 10,
+            log.distinct >= (N - recovery) * 6 / 10,
             "{} distinct frames",
             log.distinct
         );
