@@ -7,7 +7,7 @@
 
 pub mod app;
 pub mod board;
-pub mod channels;
+pub(crate) mod channels;
 pub mod config;
 pub mod drivers;
 mod ring;
