@@ -60,7 +60,7 @@
 //! supply bits are write-once per power-on: a mismatch with the board hangs at
 //! ACTVOSRDY. See README.md (section "Firmware") "Troubleshooting" for recovery.
 
-use embassy_stm32::gpio::{Level, Output, Speed};
+use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
 use embassy_stm32::pac;
 use embassy_stm32::peripherals::*;
 use embassy_stm32::rcc::{
@@ -155,6 +155,37 @@ pub struct Xy2InRes {
     /// COM DMA stream on the same CLK edges: the STATUS word towards the controller
     /// (`drivers::status_word_out`, PA0 BSRR).
     pub status_dma: Peri<'static, DMA2_CH7>,
+    /// The data lines the samples carry.
+    pub data: Xy2DataPins,
+}
+
+/// The XY2-100 data lines on port G that the TIM1 samples (GPIOG IDR) carry: pairs
+/// 2..5.
+pub struct Xy2DataPins {
+    /// Pair 2, SYNC.
+    pub sync: Peri<'static, PG0>,
+    /// Pair 3, X.
+    pub x: Peri<'static, PG1>,
+    /// Pair 4, Y.
+    pub y: Peri<'static, PG2>,
+    /// Pair 5, Z.
+    pub z: Peri<'static, PG3>,
+}
+
+impl Xy2DataPins {
+    /// The four pins as inputs (the receivers drive them). GPIO pins leave reset in
+    /// analog mode, where the input stage is off and the input data register reads 0
+    /// (RM0433 §11.3.12): without this every sample would be 0. The inputs must be
+    /// kept while sampling (dropping one turns its pin back into an unconnected
+    /// pin).
+    pub fn inputs(self) -> [Input<'static>; 4] {
+        [
+            Input::new(self.sync, Pull::None),
+            Input::new(self.x, Pull::None),
+            Input::new(self.y, Pull::None),
+            Input::new(self.z, Pull::None),
+        ]
+    }
 }
 
 /// One XY3-100 data line's receive-only SPI slave: the SPI, its SCK (from the shared
@@ -399,6 +430,12 @@ pub fn init() -> Board {
                 clk: p.PE7,
                 dma: p.DMA2_CH0,
                 status_dma: p.DMA2_CH7,
+                data: Xy2DataPins {
+                    sync: p.PG0,
+                    x: p.PG1,
+                    y: p.PG2,
+                    z: p.PG3,
+                },
             },
             xy3_in: Xy3InRes {
                 x: SpiLineRes {

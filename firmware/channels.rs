@@ -185,7 +185,8 @@ pub static HEAD_STATUS: Watch<CriticalSectionRawMutex, HeadStatus, 2> = Watch::n
 
 /// The laser gate pin (PF13, high = laser may fire), shared by the bridge (which
 /// follows `Output.laser.gate` every output batch) and the supervisor (which forces it
-/// off when the bridge stops making progress). `None` until `main` hands it over.
+/// off when the bridge stops making progress). `None` until the supervisor, which
+/// `app::spawn_supervision` hands the pin, puts it here.
 pub static LASER_GATE: Mutex<CriticalSectionRawMutex, RefCell<Option<Output<'static>>>> =
     Mutex::new(RefCell::new(None));
 

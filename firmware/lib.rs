@@ -1,9 +1,15 @@
-//! The reusable part of the firmware: the board bring-up and the peripheral drivers.
-//! It is a library so that the firmware binary (`firmware/main.rs`) and the
-//! hardware-in-the-loop test binary (`firmware/hil/main.rs`) run the same code.
+//! The firmware: board bring-up, peripheral drivers, the tasks, their channels, the
+//! baked configuration and the start-up that spawns them ([`app`]). It is a library so
+//! that the firmware binary (`firmware/main.rs`, a thin spawner) and the
+//! hardware-in-the-loop test binary (`firmware/hil/main.rs`) run the same code, the
+//! bridge tasks included.
 #![no_std]
 
+pub mod app;
 pub mod board;
+pub(crate) mod channels;
+pub mod config;
 pub mod drivers;
 mod ring;
+pub mod tasks;
 pub mod tcm;

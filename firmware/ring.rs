@@ -8,7 +8,7 @@
 /// `&'static mut [$t; $n]`.
 ///
 /// Must be expanded in code that runs at most once per boot (in the firmware each use
-/// site is in a task that `main` spawns once from a pool of one, and that never
+/// site is in a task that `app` spawns once from a pool of one, and that never
 /// returns; in the HIL tests each test runs once per reset), so the returned
 /// reference is unique.
 #[macro_export]

@@ -23,8 +23,8 @@ use super::Irqs;
 use crate::board::WaveRes;
 use crate::channels::{Stats, STATS};
 use crate::config::{Controller, Head};
+use crate::dma_ring;
 use crate::drivers::wave_out::WaveOut;
-use xy_bridge::dma_ring;
 
 /// Waveform words per batch at most (4..8 MHz ticks: 1000 words = 125..250 us).
 const WAVE_BATCH: usize = 1000;

@@ -31,8 +31,8 @@ use super::Irqs;
 use crate::board::HansOutRes;
 use crate::channels::{Stats, STATS};
 use crate::config::{Controller, Head};
+use crate::dma_ring;
 use crate::drivers::serial_tx::SerialTx;
-use xy_bridge::dma_ring;
 
 /// One HANS-100 frame slot: 125 bits at 12.5 MHz.
 const SLOT_NS: u64 = FRAME_BITS as u64 * 80;

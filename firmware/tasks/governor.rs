@@ -3,7 +3,7 @@
 //! before, [`Busy::report`] after). The policy is `shared`'s (host-tested); this file
 //! only measures time with `embassy_time::Instant` and obeys.
 //!
-//! Why it exists: the decode executor (`main.rs`, UART5 vector) preempts thread mode,
+//! Why it exists: the decode executor (`app.rs`, UART5 vector) preempts thread mode,
 //! where the supervisor feeds the watchdog. A decoder that cannot keep up would have
 //! a half queued at every moment and never let thread mode run; the chip would reset.
 //! The governor pauses it (its executor idles) whenever it was busy for more than

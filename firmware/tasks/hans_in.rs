@@ -43,7 +43,7 @@ use crate::channels::{
 use crate::drivers::hans_lines::{HansInput, CHANNELS};
 use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::RxError;
-use xy_bridge::hans_rings;
+use crate::hans_rings;
 
 /// Words fed to the receiver at a time: about 2.5 frame periods, so the events of
 /// one chunk always fit [`CHUNK_EVENTS`] and reach the bridge without waiting for

@@ -31,8 +31,8 @@ use shared::hans::tx::LEAD_SLOTS;
 use super::Irqs;
 use crate::board::HansStatusOutRes;
 use crate::channels::{Stats, HANS_STATUS_OUT, STATS};
+use crate::dma_ring;
 use crate::drivers::serial_tx::SerialTx;
-use xy_bridge::dma_ring;
 
 /// How often the ring is refreshed: 20 slot periods, so each slot is sent about
 /// 2.5 times between refreshes and the task costs about six slot writes per 200 us.

@@ -1,4 +1,4 @@
-//! High-priority line tasks, run by the line `InterruptExecutor` (`main.rs`): one task
+//! High-priority line tasks, run by the line `InterruptExecutor` (`app.rs`): one task
 //! per receiver moves each DMA half-buffer towards the bridge loops ([`super::bridge`],
 //! [`super::bridge_hans`]) or the HANS STATUS decoder (decode executor). Each loop iteration is one DMA
 //! half, so these tasks preempt everything in thread mode but never block each other
@@ -18,6 +18,7 @@ use crate::channels::{
     HansStatusRaw, RawInput, Stats, Xy3Raw, HANS_HALF, HANS_STATUS_CONTIGUOUS, HANS_STATUS_RAW,
     RAW_INPUT, STATS, XY2_HALF, XY3_HALF, XY3_INPUT, XY3_LINES, XY3_MARKS, XY3_RESYNC,
 };
+use crate::dma_ring;
 use crate::drivers::oversample_clock::Fs;
 use crate::drivers::spi_slave_rx::{Instance, RxError, SpiSlaveRx};
 use crate::drivers::status_word_out::StatusWordOut;
@@ -35,7 +36,6 @@ use shared::hans::follow;
 use shared::model::Axis;
 use shared::xy3::rx::Lines;
 use static_cell::StaticCell;
-use xy_bridge::dma_ring;
 
 /// The STATUS word stream's channel, kept for as long as its transfer runs (forever).
 static STATUS_DMA_SLOT: StaticCell<Option<dma::Channel<'static>>> = StaticCell::new();
@@ -69,6 +69,8 @@ const STATUS_WORD_RING: usize = 2 * XY2_HALF;
 /// controller ([`super::ctrl_word`]), refreshed after every half.
 #[embassy_executor::task]
 pub async fn xy2_in(r: Xy2InRes, word: Option<WordOut>) {
+    // Kept for as long as the task runs (forever): the samples read these pins.
+    let _data = r.data.inputs();
     let ring = dma_ring!(".sram2", u16, 2 * XY2_HALF);
     let mut sampler = Xy2Sampler::prepare(r.tim, r.clk, r.dma, Irqs, pac::GPIOG, ring);
     let mut ctrl_word = None;

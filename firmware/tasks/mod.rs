@@ -1,25 +1,25 @@
 //! Tasks, in three priorities (README "Tasks and executors"). Thread mode (this
 //! file, [`stats`], most of [`status`]): the supervisor (watchdog, laser gate,
 //! health), the status LEDs, the once-a-second statistics, the slow status paths.
-//! Decode executor (medium priority, `main.rs`): the HANS-100 decoders
+//! Decode executor (medium priority, `app.rs`): the HANS-100 decoders
 //! ([`hans_in::hans_decode`], [`status::hans_status`]) under the load governor
 //! ([`governor`]), which keeps them from starving thread mode. Line executor (high
 //! priority, [`line`], [`bridge`], [`bridge_hans`]): the per-DMA-half receive ->
 //! bridge -> transmit loops. Thread-mode tasks may be slow without affecting the
 //! line timing or the decoders.
 
-pub mod bridge;
+pub(crate) mod bridge;
 mod bridge_core;
-pub mod bridge_hans;
+pub(crate) mod bridge_hans;
 mod ctrl_word;
 mod encode;
-pub mod governor;
-pub mod hans_in;
-pub mod hans_status_out;
+pub(crate) mod governor;
+pub(crate) mod hans_in;
+pub(crate) mod hans_status_out;
 mod head_word;
-pub mod line;
-pub mod stats;
-pub mod status;
+pub(crate) mod line;
+pub(crate) mod stats;
+pub(crate) mod status;
 
 use embassy_stm32::gpio::Output;
 use embassy_stm32::peripherals::IWDG1;
@@ -35,7 +35,9 @@ use crate::channels::{
 use crate::drivers::sync_marks::SyncEdgeHandler;
 
 bind_interrupts!(
-    /// Every interrupt a protocol driver uses (README.md (section "Firmware") allocation table).
+    /// Every interrupt a protocol driver uses (README.md (section "Firmware") allocation
+    /// table). The hardware-in-the-loop tests bind through this one too (a vector can
+    /// have one handler per image): DMA1 stream 6 (USART2 TX) is theirs only.
     pub struct Irqs {
         DMA1_STREAM0 => dma::InterruptHandler<peripherals::DMA1_CH0>;
         DMA1_STREAM1 => dma::InterruptHandler<peripherals::DMA1_CH1>;
@@ -43,6 +45,7 @@ bind_interrupts!(
         DMA1_STREAM3 => dma::InterruptHandler<peripherals::DMA1_CH3>;
         DMA1_STREAM4 => dma::InterruptHandler<peripherals::DMA1_CH4>;
         DMA1_STREAM5 => dma::InterruptHandler<peripherals::DMA1_CH5>;
+        DMA1_STREAM6 => dma::InterruptHandler<peripherals::DMA1_CH6>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
@@ -79,7 +82,7 @@ const SUPERVISOR_PERIOD: Duration = Duration::from_millis(50);
 /// (its DMA stalled, or it never started: unsupported role, refused configuration),
 /// the supervisor forces the gate off within one period.
 #[embassy_executor::task]
-pub async fn supervisor(
+pub(crate) async fn supervisor(
     iwdg: Peri<'static, IWDG1>,
     mut laser_gate: Output<'static>,
     watchdog_reset: bool,
@@ -133,7 +136,7 @@ const BLINK_PERIODS: u32 = 10;
 /// * LD3 red, **fault**: on while the bridge reports a head alarm or lost head
 ///   status, or its loop is not running; on for good after a watchdog reset.
 #[embassy_executor::task]
-pub async fn leds(
+pub(crate) async fn leds(
     mut green: Output<'static>,
     mut yellow: Output<'static>,
     mut red: Output<'static>,
@@ -170,8 +173,8 @@ pub async fn leds(
 /// at 921600 baud between reads).
 const BACK_RING: usize = 1024;
 
-/// The head backchannel's receive ring in SRAM3 (USART2 RX, DMA1 S5). Called once,
-/// by `main`.
-pub fn back_ring() -> &'static mut [u8; BACK_RING] {
-    xy_bridge::dma_ring!(".sram3", u8, BACK_RING)
+/// The head backchannel's receive ring in SRAM3 (USART2 RX, DMA1 S5). Called once
+/// per boot, by `app::head_xy3_backchannel`.
+pub(crate) fn back_ring() -> &'static mut [u8; BACK_RING] {
+    crate::dma_ring!(".sram3", u8, BACK_RING)
 }
