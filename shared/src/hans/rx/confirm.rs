@@ -61,7 +61,7 @@
 //! the mean over the last 16 pairs took those and published whole-bit reads
 //! too (`tests::tail`). So a tail whose mean alone is beyond a quarter bit (its
 //! mean size within 3/8: the mean is too) gets a second look
-//! ([`tail_again`], [`between_pairs`]) at edges its mid-pair edges' jitter says
+//! ([`tail_again`], `between_pairs`) at edges its mid-pair edges' jitter says
 //! nothing about: the level changes between its pairs (pair `i`'s first bit
 //! against pair `i - 1`'s second, where the pattern as read changes level). On a
 //! good line they jitter on their own, and their mean lies within an eighth of
@@ -197,7 +197,7 @@ pub fn tail(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> Option<Tail> {
 }
 
 /// [`tail`] with the second look at a tail whose mean alone is beyond
-/// [`tail_window`] ([`between_pairs`], module docs). A separate entry, so that
+/// [`tail_window`] (`between_pairs`, module docs). A separate entry, so that
 /// the steady state's [`tail`] holds no call: one there (however cold) doubled
 /// the stack spills in its unrolled loop (~40 instructions a frame, QEMU).
 pub fn tail_again(ring: &Ring, head: u32, ratio: i32, pattern: u128) -> Option<Tail> {
@@ -247,7 +247,7 @@ fn measured<const AGAIN: bool>(ring: &Ring, head: u32, ratio: i32, pattern: u128
 }
 
 /// Largest mean deviation (Q16 samples) of the edges between the last
-/// [`TAIL_PAIRS`] pairs for [`between_pairs`]: an eighth of a bit.
+/// [`TAIL_PAIRS`] pairs for `between_pairs`: an eighth of a bit.
 pub fn between_window(ratio: i32) -> u32 {
     (ratio / 8) as u32
 }

@@ -30,7 +30,9 @@
 //!    timing the pattern was read with puts them, and, once the lock has settled,
 //!    the frame's last 8 mid-pair edges (every complement pair changes level in
 //!    its middle) lie on average within a quarter bit of where it puts them, their
-//!    deviations' mean size within 3/8 ([`confirm`]). Else the
+//!    deviations' mean size within 3/8 ([`confirm`]; a reference tail whose
+//!    mean alone is beyond a quarter bit gets a second look on the edges between
+//!    its pairs, [`confirm::tail_again`], `HansRx::looked_again`). Else the
 //!    phase may have drifted within the frame (a false or missing start edge moved
 //!    the tracking), and a tail read a bit off is random content whose complement
 //!    pairs pass at 2^-n: the channel counts a check failure instead (unless the
