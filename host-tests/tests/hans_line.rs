@@ -409,9 +409,6 @@ fn run_lock(fs: f64, offset_pct: f64, jitter: f64, n: usize, seed: u64) -> Lock 
 enum Must {
     /// No lock loses a frame after [`LOCK_FRAMES`].
     LoseNothing,
-    /// No lock loses a frame before its first published one (the acquisition
-    /// never takes longer than [`LOCK_FRAMES`]).
-    AcquireInTime,
     /// Measured only.
     Measure,
 }
@@ -423,14 +420,15 @@ enum Must {
 /// published frame (the rest: an acquisition longer than [`LOCK_FRAMES`]), mean and
 /// worst loss, and the mean and longest acquisition (frames before the first
 /// published one) (with `--nocapture`). Nothing wrong may be published at any
-/// point.
+/// point. `HANS_LOCKS` sets the locks per point (default 64; e.g. 640 for the
+/// figures in the engineering log), the assertions unchanged.
 #[test]
 fn limits_over_many_locks() {
-    const LOCKS: u64 = 64;
+    let locks = std::env::var("HANS_LOCKS").map_or(64, |v| v.parse::<u64>().unwrap_or(64));
     const N: usize = 80;
     let scored = N - LOCK_FRAMES - 1;
     println!(
-        "HANS-100 receiver over {LOCKS} locks per point ({scored} frames scored after {LOCK_FRAMES}), normal mode"
+        "HANS-100 receiver over {locks} locks per point ({scored} frames scored after {LOCK_FRAMES}), normal mode"
     );
     println!(
         "{:>9} {:>9} {:>7} | {:>12} {:>16} {:>7} {:>8} | {:>10} {:>9}",
@@ -444,30 +442,30 @@ fn limits_over_many_locks() {
         "first mean",
         "first max"
     );
-    // (jitter, offset in percent (None: random within ±1 %), requirement, most
-    // frames all the point's locks may lose together)
+    // (jitter, offset in percent (None: random within ±1 %), requirement)
     let points = [
-        (0.20, Some(0.0), Must::LoseNothing, 0),
+        (0.20, Some(0.0), Must::LoseNothing),
         // The hunt reads the frame between its two start edges and fits its line
         // on the frame's mid-pair edges (`shared::hans::rx::hunt`).
-        (0.25, Some(0.0), Must::LoseNothing, 0),
-        // One frame at 37.5 MHz (seed 20023, frame 53): its last 8 mid-pair
-        // edges' jitter alone put their mean 0.28 bit off a timing within 0.01
-        // bit of the line, beyond the tail's quarter-bit bound (README "Known
-        // limits"). Two such frames would be a regression. Confirming such a
-        // tail on its last 16 pairs recovers it but publishes whole-bit reads
-        // of 7 pairs (`shared` `a_whole_bit_read_of_seven_pairs_is_not_published`).
-        (0.25, None, Must::AcquireInTime, 1),
-        (0.0, Some(2.5), Must::Measure, usize::MAX),
-        (0.30, Some(0.0), Must::Measure, usize::MAX),
+        (0.25, Some(0.0), Must::LoseNothing),
+        // Seed 20023 at 37.5 MHz, frame 53, lost here before: 7 of its last 8
+        // mid-pair edges measured a sample early (3x, jitter alone), their mean
+        // 0.29 bit off a timing within 0.02 sample of the line; the edges
+        // between its pairs confirm the timing (the tail's second look,
+        // `shared::hans::rx::confirm`).
+        (0.25, None, Must::LoseNothing),
+        (0.0, Some(2.5), Must::Measure),
+        (0.30, Some(0.0), Must::Measure),
         // A clean line: the acquisition time (first published frame) is printed.
-        (0.0, Some(0.0), Must::LoseNothing, 0),
+        (0.0, Some(0.0), Must::LoseNothing),
     ];
+    // Loss requirements that failed, asserted after the whole table is printed.
+    let mut failed = Vec::new();
     for fs in [37.5e6, 40e6, 50e6] {
-        for (p, &(jitter, offset, must, most)) in points.iter().enumerate() {
+        for (p, &(jitter, offset, must)) in points.iter().enumerate() {
             let (mut losing, mut late_locks, mut lost_all, mut worst) = (0, 0, 0, 0);
             let (mut first_all, mut first_max) = (0, 0);
-            for lock in 0..LOCKS {
+            for lock in 0..locks {
                 let seed = 10_000 * p as u64 + lock;
                 let offset = offset.unwrap_or_else(|| {
                     ChaCha8Rng::seed_from_u64(seed ^ 0xA5A5).random_range(-1.0..=1.0)
@@ -480,10 +478,8 @@ fn limits_over_many_locks() {
                 } = run_lock(fs, offset, jitter, N, seed);
                 let at = format!("{fs} Hz, ±{jitter} bit, {offset:.2} %, seed {seed}");
                 assert_eq!(wrong, 0, "published a frame that was not sent: {at}");
-                match must {
-                    Must::LoseNothing => assert_eq!(lost, 0, "lost frames: {at}"),
-                    Must::AcquireInTime => assert_eq!(lost, late, "slow acquisition: {at}"),
-                    Must::Measure => {}
+                if must == Must::LoseNothing && lost > 0 {
+                    failed.push(format!("lost {lost} ({late} after publishing): {at}"));
                 }
                 losing += usize::from(lost > 0);
                 late_locks += usize::from(late > 0);
@@ -493,25 +489,22 @@ fn limits_over_many_locks() {
                 first_max = first_max.max(first);
             }
             let offset = offset.map_or("±1 %".to_string(), |o| format!("{o:.1} %"));
-            assert!(
-                lost_all <= most,
-                "{fs} Hz, ±{jitter} bit, {offset}: {lost_all} frames lost"
-            );
             println!(
-                "{:>9.1} {:>8.0}% {:>7} | {:>9}/{LOCKS} {:>13}/{LOCKS} {:>7.2} {:>8.1} | {:>10.2} {:>9}",
+                "{:>9.1} {:>8.0}% {:>7} | {:>9}/{locks} {:>13}/{locks} {:>7.2} {:>8.1} | {:>10.2} {:>9}",
                 fs / 1e6,
                 jitter * 100.0,
                 offset,
                 losing,
                 late_locks,
-                100.0 * lost_all as f64 / (scored as f64 * LOCKS as f64),
+                100.0 * lost_all as f64 / (scored as f64 * locks as f64),
                 100.0 * worst as f64 / scored as f64,
-                first_all as f64 / LOCKS as f64,
+                first_all as f64 / locks as f64,
                 first_max,
             );
         }
     }
     println!("(no wrong frame at any point)");
+    assert!(failed.is_empty(), "{failed:#?}");
 }
 
 /// Feeds `words` as the firmware does (`tasks/hans_in.rs`): 512-word halves in

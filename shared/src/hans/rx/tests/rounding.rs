@@ -167,10 +167,8 @@ const ASYM_RISES: [f64; 6] = [-0.1, -0.05, -0.025, 0.025, 0.05, 0.1];
 /// Frames lost today by [`asymmetric_clean_lines_publish_nothing_wrong`]'s
 /// points (ratio, asymmetry, frames of its 6 runs of ~190 scored frames each):
 /// a known limit, all at 3.0003x. Exactly 3x and 4x lose nothing (no rounding
-/// steps), nor does 4.0003x here.
-const ASYM_KNOWN_LOST: &[(f64, f64, usize)] = &[
-    (3.0003, -0.05, 2),
-    (3.0003, -0.025, 8),
-    (3.0003, 0.025, 4),
-    (3.0003, 0.05, 32),
-];
+/// steps), nor does 4.0003x here. The tail's second look
+/// (`confirm::tail_again`: the edges between the pairs) took 2 / 8 / 4 / 32 at
+/// -5 / -2.5 / +2.5 / +5 % down to 2 / 6 / 0 / 4.
+const ASYM_KNOWN_LOST: &[(f64, f64, usize)] =
+    &[(3.0003, -0.05, 2), (3.0003, -0.025, 6), (3.0003, 0.05, 4)];
