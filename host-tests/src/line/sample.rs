@@ -97,65 +97,16 @@ pub struct SpiCapture {
 }
 
 /// Emulates one SPI slave per data line: SCK = `CLK`, NSS = `SYNC` (active low), 8-bit
-/// words, MSB first, sampled on CLK falling edges while NSS is low.
+/// words, MSB first, sampled on CLK falling edges while NSS is low (a clock edge at
+/// the instant NSS rises is not sampled). One input session from time 0:
+/// [`xy3_spi_session`] with `start_ps` 0, so a waveform that gives a line its own
+/// SCK ([`roles::spi_sck`]) is sampled on it.
 pub fn xy3_spi(
     wave: &Waveform,
     lines: &[&str],
     partial: PartialByte,
 ) -> Result<SpiCapture, LineError> {
-    let clk = signal(wave, roles::CLK)?;
-    let nss = signal(wave, roles::SYNC)?;
-    let data = lines
-        .iter()
-        .map(|&n| signal(wave, n))
-        .collect::<Result<Vec<_>, _>>()?;
-
-    // Events in time order: (time, is_nss_rise). At equal times the clock edge goes
-    // first; it is not sampled anyway since NSS is already high at that instant.
-    let mut events: Vec<(Ps, bool)> = clk.falling_edges().map(|t| (t, false)).collect();
-    events.extend(nss.rising_edges().map(|t| (t, true)));
-    events.sort_unstable();
-
-    let mut cap = SpiCapture {
-        bytes: vec![Vec::new(); data.len()],
-        ..SpiCapture::default()
-    };
-    let mut shift: Vec<u8> = vec![0; data.len()];
-    let mut nbits: u8 = 0;
-    let mut received: u32 = 0;
-    let mut first_bit: Ps = 0;
-    for (t, nss_rise) in events {
-        if nss_rise {
-            cap.frame_ends.push(received);
-            cap.end_times.push(t);
-            if partial == PartialByte::Discard {
-                nbits = 0;
-                shift.iter_mut().for_each(|s| *s = 0);
-            }
-            continue;
-        }
-        if nss.level_at(t) {
-            continue;
-        }
-        for (reg, line) in shift.iter_mut().zip(&data) {
-            *reg = (*reg << 1) | u8::from(line.level_at(t));
-        }
-        if nbits == 0 {
-            first_bit = t;
-        }
-        nbits += 1;
-        if nbits == 8 {
-            cap.byte_times.push((first_bit, t));
-            for (out, reg) in cap.bytes.iter_mut().zip(shift.iter_mut()) {
-                out.push(*reg);
-                *reg = 0;
-            }
-            nbits = 0;
-            received = received.wrapping_add(1);
-        }
-    }
-    cap.pending_bits = nbits;
-    Ok(cap)
+    xy3_spi_session(wave, lines, partial, 0)
 }
 
 /// What one SPI slave of [`xy3_spi_session`] delivered.
@@ -223,15 +174,15 @@ fn spi_slave(
 /// XY3-100 in for one input session (`firmware/tasks/line.rs`, `xy3_in`): the SPI
 /// slaves are enabled together and the SCK bus let in at `start_ps`, so each
 /// slave shifts from the first falling edge of its SCK at or after it (a session
-/// may start inside a frame: that frame's first bits are never seen). Unlike
-/// [`xy3_spi`], each line's slave runs on its own SCK ([`roles::spi_sck`], when the
-/// waveform has one): one slave can see an edge the others miss, and its bytes
+/// may start inside a frame: that frame's first bits are never seen). Each
+/// line's slave runs on its own SCK ([`roles::spi_sck`], when the waveform has
+/// one, else `CLK`): one slave can see an edge the others miss, and its bytes
 /// then hold other bits than the others' bytes of the same index.
 ///
 /// The DMA hands over byte `i` once every line has it: `bytes` are cut to the
 /// shortest line and `byte_times` end at the latest line's last sample. Frame
-/// ends count the first line's bytes (the EXTI reads the X ring), as in
-/// [`xy3_spi`]; `pending_bits` is the first line's.
+/// ends count the first line's bytes (the EXTI reads the X ring);
+/// `pending_bits` is the first line's.
 pub fn xy3_spi_session(
     wave: &Waveform,
     lines: &[&str],

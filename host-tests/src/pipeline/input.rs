@@ -2,7 +2,7 @@
 //! turned into the bridge's neutral [`LineEvent`]s.
 
 use shared::bridge::{Config, HansDecode, Protocol, ZSource};
-use shared::model::{FaultKind, Line, LineEvent};
+use shared::model::LineEvent;
 use shared::{hans, xy2, xy3};
 
 use super::{ControllerInput, Options, PipelineError, CONTROLLER_PINS_XY2};
@@ -60,7 +60,7 @@ impl Input {
                         .xy3_step_watch
                         .then(|| xy3::step::StepWatch::new(xy3::step::OUT_OF_STEP_NS)),
                     requests: Vec::new(),
-                    new_session: false,
+                    gap: None,
                 }))
             }
             Protocol::Hans => {
@@ -84,9 +84,22 @@ impl Input {
     /// slave together, `firmware/tasks/line.rs`): the next chunk is the first of
     /// the new byte stream. `false` for other inputs.
     pub fn xy3_new_session(&mut self) -> bool {
+        self.xy3_gap(|_| 0)
+    }
+
+    /// The bridge never gets the next `bytes` bytes of every line (a DMA half
+    /// the firmware's full `XY3_INPUT` queue lost, with its frame ends): the next
+    /// chunk continues the byte stream that much later. `false` for other inputs.
+    pub fn xy3_lost(&mut self, bytes: u32) -> bool {
+        self.xy3_gap(|at| at.wrapping_add(bytes))
+    }
+
+    /// The next chunk starts at byte count `first(bytes so far)`, not where the
+    /// last one ended; gaps add up until a chunk comes.
+    fn xy3_gap(&mut self, first: impl FnOnce(u32) -> u32) -> bool {
         match self {
             Input::Xy3(x) => {
-                x.new_session = true;
+                x.gap = Some(first(x.gap.unwrap_or(x.bytes)));
                 true
             }
             _ => false,
@@ -151,21 +164,15 @@ impl Input {
                 samples.len()
             }
             (Input::Xy3(x), ControllerInput::Xy3 { lines, ends }) => {
-                if x.new_session {
-                    // As the bridge on the first half of a new session
-                    // (`firmware/tasks/bridge_core.rs`, `Xy3Decoder::feed`): the
-                    // byte stream starts over at 0, what the old receiver still
+                if let Some(first) = x.gap.take() {
+                    // As the bridge on a half that does not continue the byte
+                    // stream, a new session's first or one after a lost half
+                    // (`firmware/tasks/bridge_core.rs`, `Xy3Decoder::feed`): a
+                    // receiver from this half's count on, what the old one still
                     // held is gone. The watch carries on (its backoff).
-                    x.new_session = false;
-                    x.rx = xy3::rx::Receiver::new(x.lines);
-                    x.bytes = 0;
-                    out.push((
-                        0,
-                        LineEvent::Fault {
-                            line: Line::Framing,
-                            kind: FaultKind::Dropped,
-                        },
-                    ));
+                    x.rx = xy3::rx::Receiver::with_origin(x.lines, first);
+                    x.bytes = first;
+                    out.push((0, xy3::step::dropped()));
                 }
                 let len = lines.first().map_or(0, |l| l.len());
                 let origin = x.bytes;
@@ -228,8 +235,9 @@ pub(super) struct Xy3Input {
     watch: Option<xy3::step::StepWatch>,
     /// When the watch asked for a restart, ns (the firmware's `XY3_RESYNC`).
     requests: Vec<u64>,
-    /// The next chunk starts a new session.
-    new_session: bool,
+    /// The next chunk does not continue the byte stream: its first byte's count
+    /// (0 for a new session).
+    gap: Option<u32>,
 }
 
 impl Xy3Input {

@@ -389,6 +389,15 @@ impl Pipeline {
         self.input.xy3_new_session()
     }
 
+    /// The bridge never got the next `bytes` bytes of every XY3-100 line, nor the
+    /// frame ends drained with them (the firmware's line task found the
+    /// `XY3_INPUT` queue full and lost a half): the next controller chunk
+    /// continues the byte stream that much later. Returns `false` (and changes
+    /// nothing) for other inputs.
+    pub fn xy3_lost(&mut self, bytes: u32) -> bool {
+        self.input.xy3_lost(bytes)
+    }
+
     /// Feeds one chunk of head-side status buffers at `now_ns`.
     pub fn feed_status(
         &mut self,

@@ -435,6 +435,14 @@ pub struct SessionModel {
     /// opening, ns: dropping five SPI slaves, starting them and the SYNC EXTI again
     /// (not measured on the board; tens of microseconds at most).
     pub setup_ns: u64,
+    /// Every `lose_every`-th half of a session (the last of each run of that
+    /// many) never reaches the pipeline, as when the bridge falls behind and the
+    /// line task finds the queue full (0: none lost).
+    pub lose_every: u32,
+    /// From a half's last byte to the line task draining the SYNC marks, ns: a
+    /// SYNC rise that came meanwhile goes with that half (0: only those before
+    /// its last byte).
+    pub ends_lag_ns: u64,
 }
 
 impl Default for SessionModel {
@@ -442,6 +450,8 @@ impl Default for SessionModel {
         SessionModel {
             partial: PartialByte::Discard,
             setup_ns: 20_000,
+            lose_every: 0,
+            ends_lag_ns: 0,
         }
     }
 }
@@ -480,7 +490,8 @@ pub const XY3_HALF: usize = shared::xy3::rx::WINDOW / 2;
 /// `model.setup_ns` a new session starts every slave together
 /// ([`Pipeline::xy3_new_session`]), from the next clock edge, possibly inside a
 /// frame. A glitch before that start no longer matters: all lines are in step
-/// again.
+/// again. With `model.lose_every`, halves the bridge never gets are skipped
+/// ([`Pipeline::xy3_lost`]): the session goes on, the byte stream has a gap.
 pub fn xy3_sessions(
     p: &mut Pipeline,
     config: &Config,
@@ -523,7 +534,7 @@ pub fn xy3_sessions(
             while let (Some(&e), Some(&t)) =
                 (cap.frame_ends.get(next_end), cap.end_times.get(next_end))
             {
-                if t > done_ps {
+                if t > done_ps + model.ends_lag_ns * 1000 {
                     break;
                 }
                 ends.push(e);
@@ -534,6 +545,17 @@ pub fn xy3_sessions(
                 .iter()
                 .map(|l| l.get(lo..hi).unwrap_or_default())
                 .collect();
+            let every = model.lose_every as usize;
+            if every > 0 && h % every == every - 1 {
+                // Lost with its frame ends; the line task goes on (a request
+                // the bridge never made stays unmade).
+                p.xy3_lost(XY3_HALF as u32);
+                session.end_ns = t_ns;
+                if last_half == Some(h) {
+                    break;
+                }
+                continue;
+            }
             let span = t_ns.saturating_sub(prev_ns).max(1);
             p.feed_spread(
                 t_ns,

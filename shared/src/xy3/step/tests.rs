@@ -365,3 +365,190 @@ fn noise_costs_the_period_before_each_bad_one() {
     assert_eq!((e.faults, e.dropped), (2_000, 2_000));
     assert_eq!(e.frames.len(), 96_000);
 }
+
+/// A period with X as `x` and Y as `y`, ending at `end`.
+fn xy(x: Frame, y: Frame, end: u32) -> Period {
+    let mut lines = [None; 5];
+    lines[0] = Some(Ok(x));
+    lines[1] = Some(Ok(y));
+    Period { lines, end }
+}
+
+#[test]
+fn only_the_direct_successor_confirms_a_held_period() {
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut e = Emitted::default();
+    w.period(0, &one_line(Some(1), 3), e.sink());
+    // A half lost after it (64 bytes): the next good period begins at 67, not 3.
+    w.period(FP, &one_line(Some(2), 70), e.sink());
+    assert_eq!((e.frames.len(), e.dropped), (0, 1));
+    // Its own successor confirms it as usual.
+    w.period(2 * FP, &one_line(Some(3), 73), e.sink());
+    assert_eq!((e.frames.clone(), e.dropped), (vec![2], 1));
+    // A new session counts from 0 again: not a successor either.
+    w.period(3 * FP, &one_line(Some(4), 3), e.sink());
+    assert_eq!((e.frames.clone(), e.dropped), (vec![2], 2));
+    // 32-bit frames are 4 bytes long.
+    let p32 = |v, end| {
+        let mut p = one_line(None, end);
+        p.lines[0] = Some(Ok(Frame::Position32(v)));
+        p
+    };
+    // (26-bit values, read as 20 bits by `Emitted`.)
+    w.period(4 * FP, &p32(5 << 6, 7), e.sink());
+    w.period(5 * FP, &p32(6 << 6, 11), e.sink());
+    w.period(6 * FP, &p32(7 << 6, 16), e.sink());
+    assert_eq!((e.frames.clone(), e.dropped), (vec![2, 4, 5], 3));
+    // The byte count wraps: 0xFFFF_FFFE + 4 ends at 2.
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut e = Emitted::default();
+    w.period(0, &p32(1 << 6, 0xFFFF_FFFE), e.sink());
+    w.period(FP, &p32(2 << 6, 2), e.sink());
+    assert_eq!((e.frames, e.dropped), (vec![1], 0));
+    // Never a gap fault of its own, and nothing is suspect after gaps: they
+    // are not bad periods.
+    assert!(!w.suspect());
+}
+
+#[test]
+fn a_last_frame_after_a_gap_still_goes_out_before_the_input_timeout() {
+    // A gap (a lost half), a few good periods, then the stream stops with a
+    // command on X (a laser-off, say): the period before the gap is dropped,
+    // the last one goes out CONFIRM_NS after it came, inside the bridge's
+    // 1 ms input timeout (`failsafe.input_timeout_us`).
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut ev = Vec::new();
+    w.period(0, &one_line(Some(1), 3), |e| ev.push(e));
+    w.period(FP, &one_line(Some(2), 70), |e| ev.push(e));
+    w.period(2 * FP, &one_line(Some(3), 73), |e| ev.push(e));
+    let mut off = one_line(None, 76);
+    off.lines[0] = Some(Ok(Frame::Command24(0x4_0000)));
+    let last = 3 * FP;
+    w.period(last, &off, |e| ev.push(e));
+    assert_eq!(w.release_due(), Some(last + CONFIRM_NS));
+    let timeout = u64::from(crate::bridge::Config::default().failsafe.input_timeout_us) * 1000;
+    assert!(last + CONFIRM_NS < last + timeout);
+    w.release(last + CONFIRM_NS - 1, |e| ev.push(e));
+    // Dropped (the period before the gap), then the frames 2 and 3.
+    assert_eq!(ev.len(), 3);
+    assert_eq!(ev[0], dropped());
+    w.release(last + CONFIRM_NS, |e| ev.push(e));
+    assert!(
+        matches!(ev[3], LineEvent::Frame(f) if f.command.is_some()),
+        "{ev:?}"
+    );
+    assert_eq!(ev.len(), 4);
+}
+
+#[test]
+fn a_command_on_another_line_needs_the_same_on_x() {
+    let (p, c) = (Frame::Position24, Frame::Command24);
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut e = Emitted::default();
+    // Conforming periods: positions, a command on X alone or repeated on Y.
+    let ok = [
+        xy(p(1), p(2), 3),
+        xy(c(0xA_0000), p(3), 6),
+        xy(c(0xA_0000), c(0xA_0000), 9),
+        xy(p(4), p(5), 12),
+    ];
+    for (k, q) in ok.iter().enumerate() {
+        w.period(k as u64 * FP, q, e.sink());
+    }
+    w.release(u64::MAX, e.sink());
+    // (Command periods carry no X position: 2 of the 4 frames have one.)
+    assert_eq!((e.frames, e.dropped, e.faults), (vec![1, 4], 0, 0));
+    // A command on Y under a position on X, or another command than X's: the
+    // held period before it and the period itself are withheld, and it is a
+    // bad period (3 make the session suspect).
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut e = Emitted::default();
+    let stray = [
+        xy(p(1), p(2), 3),
+        xy(p(6), c(0x4_0000), 6),
+        xy(c(0x2_0000), c(0x4_0000), 9),
+        xy(p(7), c(0x1_0000), 12),
+    ];
+    for (k, q) in stray.iter().enumerate() {
+        w.period(k as u64 * FP, q, e.sink());
+    }
+    assert!(w.suspect());
+    w.period(4 * FP, &xy(p(8), p(9), 15), e.sink());
+    w.release(u64::MAX, e.sink());
+    assert_eq!((e.frames, e.dropped, e.faults), (vec![], 5, 0));
+}
+
+/// The periods of 24-bit `bytes` (one slice per line of `lines`) through a new
+/// receiver, a period's bytes and its end at a time.
+fn periods_of(lines: Lines, bytes: &[Vec<u8>]) -> Vec<Period> {
+    let mut rx = Receiver::new(lines);
+    let mut out = Vec::new();
+    for i in 0..bytes[0].len() / 3 {
+        let part: Vec<&[u8]> = bytes.iter().map(|b| &b[3 * i..3 * i + 3]).collect();
+        rx.push_bytes(&part).unwrap();
+        rx.push_ends(&[3 * (i as u32 + 1)]);
+        out.extend(core::iter::from_fn(|| rx.poll()));
+    }
+    out
+}
+
+/// A line a whole byte late (an SPI that drops partial bytes saw 9 extra
+/// edges) whose first shifted period passes by chance, then a gap: the input
+/// session restarts (in step) right after it. The new session's first period
+/// follows no held one, so the wrong period is dropped, not confirmed.
+#[test]
+fn a_chance_pass_before_a_gap_is_dropped() {
+    const N: usize = 40;
+    let lines = Lines::new(&[Axis::X, Axis::Y, Axis::Z]).unwrap();
+    // The first slip period (from 10 on) at which Y, one byte late, passes
+    // its check with a position frame (about one in 16).
+    let shifted = |k: usize| -> Vec<Vec<u8>> {
+        (0..3)
+            .map(|l| {
+                let mut b = line_bytes(l, 0, k + 1, None);
+                if l == 1 {
+                    b.insert(3 * k, 0x5A);
+                    b.truncate(3 * (k + 1));
+                }
+                b
+            })
+            .collect()
+    };
+    let (k, periods) = (10..400)
+        .find_map(|k| {
+            let periods = periods_of(lines, &shifted(k));
+            let p = periods.last()?;
+            let y_ok = matches!(p.lines[1], Some(Ok(Frame::Position24(v))) if v != value(1, k));
+            (p.all_ok() && y_ok).then_some((k, periods))
+        })
+        .expect("a chance pass");
+    let mut w = StepWatch::new(OUT_OF_STEP_NS);
+    let mut ev = Vec::new();
+    let mut sink = |e| ev.push(e);
+    for (i, p) in periods.iter().enumerate() {
+        w.period(i as u64 * FP, p, &mut sink);
+    }
+    // The slip period is held.
+    assert!(w.release_due().is_some());
+    // The new session (all lines in step, counting from 0) from period k + 30.
+    let from = k + 30;
+    let again: Vec<Vec<u8>> = (0..3).map(|l| line_bytes(l, from, N, None)).collect();
+    for (i, p) in periods_of(lines, &again).iter().enumerate() {
+        w.period((from + i) as u64 * FP, p, &mut sink);
+    }
+    w.release(u64::MAX, &mut sink);
+    // The wrong Y of period k never went out; the new session's all did.
+    let frames: Vec<Option<u32>> = ev
+        .iter()
+        .filter_map(|e| match e {
+            LineEvent::Frame(f) => Some(y(f)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(ev.iter().filter(|&&e| e == dropped()).count(), 1);
+    let want: Vec<Option<u32>> = (0..k)
+        .chain(from..from + N)
+        .map(|i| Some(value(1, i)))
+        .collect();
+    assert_eq!(frames, want);
+}
