@@ -10,7 +10,7 @@ use core::sync::atomic::Ordering;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::watch::AnonReceiver;
 use shared::bridge::{Bridge, Config, LinkState, Output, StatusForm, ZSource};
-use shared::model::{Alarms, Axis, FaultKind, ForwardFrame, HeadStatus, Line, LineEvent};
+use shared::model::{Alarms, Axis, ForwardFrame, HeadStatus, LineEvent};
 use shared::xy3::back::SEND_BUF_LEN;
 use shared::xy3::BackRate;
 use shared::{xy2, xy3};
@@ -129,13 +129,7 @@ impl Xy3Decoder {
             // stream is not continuous, so start a receiver at this half's count
             // (pending frame ends of the old stream are meaningless now).
             if self.session.is_some() {
-                emit(
-                    0,
-                    LineEvent::Fault {
-                        line: Line::Framing,
-                        kind: FaultKind::Dropped,
-                    },
-                );
+                emit(0, xy3::step::dropped());
             }
             self.rx = xy3::rx::Receiver::with_origin(self.lines, raw.first_byte);
             self.session = Some(raw.session);
