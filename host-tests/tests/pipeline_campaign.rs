@@ -333,7 +333,7 @@ fn a_million_faulted_xy3_frames_none_corrupted() {
         total += frames.len() as u64;
         // The receiver alone: with a fault in a third of the periods the
         // out-of-step watch (`shared::xy3::step`) keeps the session suspect and
-        // withholds nearly every period (block 0 with it: 2 278 of 50 000 frames
+        // withholds nearly every period (block 0 with it, before the look-ahead: 2 278 of 50 000 frames
         // passed, 65 restart requests, 16 input losses), as the firmware would.
         let opts = Options {
             xy3_step_watch: false,
