@@ -926,20 +926,17 @@ impl HansRx {
     #[cold]
     #[inline(never)]
     fn looked_again(&mut self, pattern: u128) -> bool {
-        let n = self.reference;
-        let (start, ratio) = (self.timing.start, self.timing.ratio);
-        let (Some(ring), Some(delay)) = (
-            self.rings.get(n),
-            self.channels.get(n).and_then(|c| c.delay),
-        ) else {
+        let ratio = self.timing.ratio;
+        let Some(Second {
+            ring,
+            head,
+            next,
+            w,
+            ..
+        }) = second(&self.rings, &self.channels, &self.timing, self.reference)
+        else {
             return false;
         };
-        if !self.timing.settled() {
-            return false;
-        }
-        let w = confirm_window(ratio);
-        let head = start.wrapping_add(delay as u32);
-        let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
         if ![head, next]
             .into_iter()
             .all(|at| start_edge(ring, at, w).is_some())
@@ -976,18 +973,19 @@ impl HansRx {
     fn rephased(&mut self, pattern: u128) -> bool {
         let n = self.reference;
         let (start, ratio) = (self.timing.start, self.timing.ratio);
-        let (Some(ring), Some(delay)) = (
-            self.rings.get(n),
-            self.channels.get(n).and_then(|c| c.delay),
-        ) else {
+        let Some(Second {
+            ring,
+            delay,
+            head,
+            next,
+            w,
+        }) = second(&self.rings, &self.channels, &self.timing, n)
+        else {
             return false;
         };
-        if !self.timing.settled() || Frame::decode(pattern).is_err() {
+        if Frame::decode(pattern).is_err() {
             return false;
         }
-        let w = confirm_window(ratio);
-        let head = start.wrapping_add(delay as u32);
-        let next = head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32));
         // Each start edge against where the timing puts it, found as `confirmed`
         // finds it.
         let edge = |at: u32| start_edge(ring, at, w).map(|e| diff(e, at));
@@ -1426,6 +1424,43 @@ struct Checked {
 /// centre reads its neighbour.
 fn confirm_window(ratio: i32) -> u32 {
     (ratio * 3 / 8) as u32
+}
+
+/// Where a second reading of the reference's frame starts, for
+/// [`HansRx::rephased`] and [`HansRx::looked_again`]: the reference channel's
+/// ring and delay, the frame's start (`head`) and its successor's (`next`) at the
+/// timing, and the start-edge window `w`. `None` unless the lock has settled and
+/// the channel's delay is known. A free function over the fields it reads, so
+/// that the ring stays borrowed while the callers use the decoder's table.
+fn second<'a>(
+    rings: &'a [Ring; CHANNELS],
+    channels: &[Channel; CHANNELS],
+    timing: &Timing,
+    n: usize,
+) -> Option<Second<'a>> {
+    let ring = rings.get(n)?;
+    let delay = channels.get(n)?.delay?;
+    if !timing.settled() {
+        return None;
+    }
+    let ratio = timing.ratio;
+    let head = timing.start.wrapping_add(delay as u32);
+    Some(Second {
+        ring,
+        delay,
+        head,
+        next: head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32)),
+        w: confirm_window(ratio),
+    })
+}
+
+/// What [`second`] finds.
+struct Second<'a> {
+    ring: &'a Ring,
+    delay: i32,
+    head: u32,
+    next: u32,
+    w: u32,
 }
 
 /// The start edge (Q16, as [`Ring::first_fall`] gives it) within `w` of `at` on
