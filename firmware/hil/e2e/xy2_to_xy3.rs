@@ -1,0 +1,470 @@
+//! The default pairing (`bridge.toml`): XY2-100 controller -> XY3-100 head.
+
+#[embedded_test::tests(default_timeout = 10)]
+mod tests {
+    use crate::e2e::{
+        e2e_positions, frame_of_x, HeadLog, Xy2Source, SRC_FRAMES, SRC_PINS, SRC_TPF,
+    };
+    use embassy_stm32::pac;
+    use embassy_stm32::usart::UartTx;
+    use embassy_time::Duration;
+    use shared::xy2::tx::Transmitter as Xy2Tx;
+    use shared::xy2::{
+        decode as xy2_decode, encode as xy2_encode, Frame as Frame2, Health, LinkConfig,
+        StatusLevel,
+    };
+    use shared::xy3;
+    use shared::xy3::back::{Packet, Sender, SEND_BUF_LEN};
+    use shared::xy3::{Frame as Frame3, FrameSize};
+    use xy_bridge::board::{self, Board};
+    use xy_bridge::dma_ring;
+    use xy_bridge::drivers::backchannel;
+    use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
+    use xy_bridge::drivers::sync_marks::SyncMarks;
+    use xy_bridge::tasks::Irqs;
+
+    #[init]
+    fn init() -> Board {
+        board::init()
+    }
+
+    /// The whole bridge through its own tasks, for the baked default pairing
+    /// (`bridge.toml`: XY2-100 controller -> XY3-100 head, 16 -> 20 bits, axis map
+    /// identity, Z from the input, free-running at 100 kHz): the firmware's `app`
+    /// functions spawn the supervisor (watchdog, laser gate), LEDs and statistics,
+    /// `line::xy2_in` and `bridge_wave_out` in the line executor, the STATUS level
+    /// and head backchannel tasks, as `app::spawn_bridge` does for this pairing.
+    /// [`Xy2Source`] plays 30 000 frames from `shared::xy2::tx` into the
+    /// controller-side XY2 input (frame 12 345 with its X parity bit flipped); the
+    /// head's XY3-100 output is received by the controller-side XY3 SPI slaves (X, Y,
+    /// Z) and SYNC marks, which this pairing leaves free, and decoded by
+    /// `shared::xy3::rx::Receiver`; UART7 plays the head's backchannel (a status
+    /// packet every 20 ms), which the gate waits for (`failsafe.status_timeout_us`).
+    ///
+    /// Checks: no head frame before the input's; then every head period decodes and
+    /// is a frame sent, translated (X, Y, Z each `v << 4`: positions are MSB-aligned,
+    /// `xy3-100-notes.md` "Summary"), never going back, in steps of at most 4
+    /// frames, at least 60 % of the frames distinct (free-running at the input's
+    /// rate, a batch of 20 slots that drains a half of 25 frames skips 5: ~80 %
+    /// expected, README "Added latency"), the first one at the end of the recovery
+    /// run (`failsafe.recovery_frames`), the last ones reaching the head, then the
+    /// park position and nothing else; the flipped frame never; the laser gate (PF13
+    /// pad) off before the input, on within 10 ms of it and on until it stops, off
+    /// within 6 ms after and for good; the STATUS towards the controller (PA0)
+    /// "fault" before, "OK" within 200 ms of the input and until it stops, "fault"
+    /// again within 250 ms after.
+    ///
+    /// Jumpers: source PE2 -> PE7, PE3 -> PG0, PE4 -> PG1, PE9 -> PG2, PE10 -> PG3;
+    /// head PD0 (SYNC) -> PA15, PE11, PF6 and PA4, PD1 (CLK) -> PC10, PE12 and PF7,
+    /// PD2 (X) -> PC12, PD3 (Y) -> PE14, PD10 (Z) -> PF9; head backchannel PE8 ->
+    /// PD6.
+    #[test]
+    #[timeout(20)]
+    async fn bridge_tasks_xy2_to_xy3_end_to_end(board: Board) {
+        use embassy_futures::select::{select, Either};
+        use embassy_time::Instant;
+        use shared::bridge::{AfterHold, Timing, ZSource};
+        use shared::model::Axis;
+        use xy_bridge::app::{self, Executors};
+        use xy_bridge::config::{self, Controller, Head, Roles};
+        const N: u32 = 30_000;
+        const BAD: u32 = 12_345;
+        const CHUNK: usize = xy3::rx::WINDOW / 2;
+
+        // The baked configuration this test is written for.
+        let config = config::load().unwrap();
+        let roles = Roles::of(&config);
+        assert_eq!(
+            roles,
+            Roles {
+                controller: Controller::Xy2,
+                head: Head::Xy3
+            },
+            "build the HIL with the default bridge.toml (README, HIL)"
+        );
+        let a = config.axes;
+        assert!(
+            !a.swap_xy && !a.invert_x && !a.invert_y && !a.invert_z,
+            "axis map"
+        );
+        assert_eq!((a.offset_x, a.offset_y, a.offset_z), (0, 0, 0), "offsets");
+        assert_eq!(config.z.source, ZSource::Input);
+        assert_eq!(config.head.xy3.frame_size, FrameSize::Bits24);
+        assert_eq!(config.output.timing, Timing::FreeRunning);
+        assert_eq!(config.output.frame_rate_hz, 100_000);
+        assert_eq!(config.failsafe.after_hold, AfterHold::Park);
+        assert_ne!(config.failsafe.status_timeout_us, 0);
+        let f = config.failsafe;
+        let park = [f.park_x, f.park_y, f.park_z];
+        let recovery = f.recovery_frames;
+        let head_of = |k: u32| e2e_positions(k).map(|v| u32::from(v) << 4);
+        assert!((0..N).all(|k| head_of(k) != park), "a frame looks parked");
+        assert!(
+            (0..N).all(|k| frame_of_x(e2e_positions(k)[0]) == k),
+            "frame_of_x"
+        );
+        let link = LinkConfig {
+            mode: config.controller.xy2.mode,
+            parity: config.controller.xy2.parity,
+        };
+        // The flipped bit is the parity bit: the word still carries frame BAD's X
+        // (which would show at the head if it got through), and fails its check.
+        let bad_x = Frame2::Position16(e2e_positions(BAD)[0]);
+        let bad_word = xy2_encode(bad_x, &link).unwrap() ^ 1;
+        assert!(xy2_decode(bad_word, &link).is_err(), "flipped word passes");
+        assert_eq!(xy2_decode(bad_word ^ 1, &link), Ok(bad_x));
+        let status_level = StatusLevel {
+            polarity: config.controller.xy2.polarity,
+        };
+
+        let spawner = unsafe {
+            // SAFETY: `embedded-test` (feature `embassy-010`) runs async tests as
+            // tasks of embassy's thread-mode executor, so the context is embassy's.
+            embassy_executor::Spawner::for_current_executor()
+        }
+        .await;
+        let r = board.res;
+
+        // The head backchannel's USART2 goes to the firmware but its TX DMA stream
+        // (DMA1 S6, the HIL's) to the source: DMA1 carries nothing else fast here.
+        let hb = r.head_back;
+        // The controller side's source, idle.
+        let tx = Xy2Tx::new(SRC_PINS, SRC_TPF, link).unwrap();
+        let mut source = Xy2Source::start(
+            hb.tx_dma,
+            dma_ring!(".sram1", u32, 2 * SRC_FRAMES * SRC_TPF),
+            tx.idle_word(),
+        );
+        // The head's backchannel.
+        let mut head_back = UartTx::new(
+            r.back.uart,
+            r.back.tx,
+            r.back.tx_dma,
+            Irqs,
+            backchannel::config(config.controller.xy3.back_rate.baud()),
+        )
+        .unwrap();
+
+        // The firmware's tasks for this pairing, spawned as `app::spawn_bridge` does.
+        let leds = [board.led_green, board.led_yellow, board.led_red];
+        app::spawn_supervision(spawner, board.iwdg, board.laser_gate, leds, false);
+        let ex = Executors::start();
+        let head_enable = app::head_drivers(r.head_enable, r.head_mux, roles.head);
+        app::controller_xy2(spawner, ex, &config, r.xy2_in, r.ctrl_status, r.back.de);
+        app::head_xy3_backchannel(spawner, &config, hb.uart, hb.rx, hb.rx_dma);
+        app::head_wave(
+            spawner,
+            ex,
+            &config,
+            roles,
+            r.wave,
+            head_enable,
+            r.head_status,
+        );
+
+        // The bridge switches the head drivers on once its idle pattern plays; the
+        // mux select stays driven low (waveform).
+        let pf = pac::GPIOF;
+        let t0 = Instant::now();
+        while pf.odr().read().odr(11) != pac::gpio::vals::Odr::HIGH {
+            assert!(
+                t0.elapsed() < Duration::from_millis(100),
+                "head drivers never enabled"
+            );
+            embassy_time::Timer::after_micros(100).await;
+        }
+        assert_eq!(
+            pf.moder().read().moder(15),
+            pac::gpio::vals::Moder::OUTPUT,
+            "PF15 released"
+        );
+        assert_eq!(
+            pf.odr().read().odr(15),
+            pac::gpio::vals::Odr::LOW,
+            "PF15 not on the waveform"
+        );
+        // Head side read back, started now that the head's lines idle (SYNC high,
+        // CLK low; before, the unconfigured pins floated): SPI3 (X), SPI4 (Y), SPI5
+        // (Z) slaves selected by the head's SYNC, and the SYNC marks, whose every
+        // rising edge from here is a frame end.
+        let i = r.xy3_in;
+        let (lx, ly, lz) = (i.x, i.y, i.z);
+        let mut rx_lines = [
+            SpiSlaveRx::new(
+                lx.spi,
+                lx.sck,
+                lx.mosi,
+                Some(lx.nss),
+                lx.dma,
+                Irqs,
+                dma_ring!(".sram1", u8, 1024),
+            )
+            .unwrap(),
+            SpiSlaveRx::new(
+                ly.spi,
+                ly.sck,
+                ly.mosi,
+                Some(ly.nss),
+                ly.dma,
+                Irqs,
+                dma_ring!(".sram1", u8, 1024),
+            )
+            .unwrap(),
+            SpiSlaveRx::new(
+                lz.spi,
+                lz.sck,
+                lz.mosi,
+                Some(lz.nss),
+                lz.dma,
+                Irqs,
+                dma_ring!(".sram1", u8, 1024),
+            )
+            .unwrap(),
+        ];
+        let mut marks = SyncMarks::new(i.sync, i.exti, Irqs, 1024);
+
+        let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
+        let status =
+            || status_level.health(pac::GPIOA.idr().read().idr(0) == pac::gpio::vals::Idr::HIGH);
+
+        // Phases, set by the source: 0 before the input, 1 while frames are written,
+        // 2 once the last frame is written (`stop_at`: once it played, the ring
+        // holding nothing but idle), 3 done.
+        let phase = core::cell::Cell::new(0u8);
+        let input_at = core::cell::Cell::new(Instant::now());
+        let stop_at = core::cell::Cell::new(None);
+        let underrun = core::cell::Cell::new(false);
+
+        let source_run = async {
+            embassy_time::Timer::after_millis(30).await;
+            let mut half = [0u32; SRC_FRAMES * SRC_TPF];
+            for h in 0..N / SRC_FRAMES as u32 {
+                for (f, slot) in half.chunks_exact_mut(SRC_TPF).enumerate() {
+                    let k = h * SRC_FRAMES as u32 + f as u32;
+                    let [x, y, z] =
+                        e2e_positions(k).map(|v| xy2_encode(Frame2::Position16(v), &link).unwrap());
+                    let x = if k == BAD { x ^ 1 } else { x };
+                    tx.write_words(slot, [x, y, z]).unwrap();
+                }
+                if !source.write(&half).await {
+                    underrun.set(true);
+                }
+                if h == 0 {
+                    input_at.set(Instant::now());
+                    phase.set(1);
+                }
+            }
+            // Two idle halves: once both are queued the last frame has played (the
+            // ring holds one lap of written words at most) and the ring holds
+            // nothing but idle.
+            phase.set(2);
+            half.fill(tx.idle_word());
+            for _ in 0..2 {
+                if !source.write(&half).await {
+                    underrun.set(true);
+                }
+            }
+            stop_at.set(Some(Instant::now()));
+            embassy_time::Timer::after_millis(300).await;
+            phase.set(3);
+        };
+
+        let head_sim = async {
+            let mut sender = Sender::default();
+            let mut out = [0u8; SEND_BUF_LEN];
+            while phase.get() < 3 {
+                let n = sender
+                    .send(0, &Packet::FrameErrorCount([0; 5]), &mut out)
+                    .unwrap();
+                head_back.write(&out[..n]).await.unwrap();
+                embassy_time::Timer::after_millis(20).await;
+            }
+        };
+
+        // Gate and STATUS, every 100 us: violations counted per phase.
+        #[derive(Default, Debug, defmt::Format)]
+        struct Levels {
+            gate_before: u32,
+            status_before: u32,
+            gate_on_after_us: Option<u64>,
+            gate_drops: u32,
+            status_ok_after_us: Option<u64>,
+            status_drops: u32,
+            gate_late: u32,
+            status_late: u32,
+            samples_after: u32,
+        }
+        let mut lv = Levels::default();
+        let sampler = async {
+            loop {
+                let p = phase.get();
+                let (g, st) = (gate_high(), status());
+                match p {
+                    0 => {
+                        lv.gate_before += u32::from(g);
+                        lv.status_before += u32::from(st == Health::Ok);
+                    }
+                    1 => {
+                        let t = input_at.get().elapsed().as_micros();
+                        match (lv.gate_on_after_us, g) {
+                            (None, true) => lv.gate_on_after_us = Some(t),
+                            (Some(_), false) => lv.gate_drops += 1,
+                            _ => {}
+                        }
+                        match (lv.status_ok_after_us, st == Health::Ok) {
+                            (None, true) => lv.status_ok_after_us = Some(t),
+                            (Some(_), false) => lv.status_drops += 1,
+                            _ => {}
+                        }
+                    }
+                    2 => {
+                        let Some(t) = stop_at.get().map(|t: Instant| t.elapsed()) else {
+                            embassy_time::Timer::after_micros(100).await;
+                            continue;
+                        };
+                        lv.samples_after += 1;
+                        if t > Duration::from_millis(6) && g {
+                            lv.gate_late += 1;
+                        }
+                        if t > Duration::from_millis(250) && st == Health::Ok {
+                            lv.status_late += 1;
+                        }
+                    }
+                    _ => break,
+                }
+                embassy_time::Timer::after_micros(100).await;
+            }
+        };
+
+        let mut log = HeadLog::default();
+        // Reads every line's next chunk (no timeout: a read cancelled half-way would
+        // lose bytes of one line only) and checks each period decoded. The head
+        // never stops once it started (hold, then park), so the loop sees the end
+        // of the run within a chunk; if it never starts, the deadline below ends it.
+        let reader = async {
+            let mut rx = xy3::rx::Receiver::new(xy3::rx::Lines::XYZ);
+            let mut bytes = [[0u8; CHUNK]; 3];
+            let mut ends = [0u32; xy3::rx::MAX_PENDING_ENDS];
+            while phase.get() < 3 {
+                for (line, buf) in rx_lines.iter_mut().zip(bytes.iter_mut()) {
+                    line.read_exact(buf).await.unwrap();
+                }
+                let n = marks.drain(&mut ends);
+                let lines: [&[u8]; 3] = [&bytes[0], &bytes[1], &bytes[2]];
+                rx.push_bytes(&lines).unwrap();
+                rx.push_ends(&ends[..n]);
+                while let Some(p) = rx.poll() {
+                    log.periods += 1;
+                    let mut v = [0u32; 3];
+                    let mut ok = true;
+                    for (axis, v) in [Axis::X, Axis::Y, Axis::Z].iter().zip(v.iter_mut()) {
+                        match p.lines[axis.index()] {
+                            Some(Ok(Frame3::Position24(pos))) => *v = pos,
+                            _ => ok = false,
+                        }
+                    }
+                    if !ok {
+                        log.failed += 1;
+                        continue;
+                    }
+                    if v == park {
+                        log.park += 1;
+                        log.park_before_first += u32::from(log.first.is_none());
+                        continue;
+                    }
+                    let k = frame_of_x((v[0] >> 4) as u16);
+                    if k >= N || head_of(k) != v {
+                        log.unknown += 1;
+                        continue;
+                    }
+                    log.frames_after_park += u32::from(log.park > 0);
+                    log.bad_seen |= k == BAD;
+                    log.first.get_or_insert(k);
+                    match log.last {
+                        Some(last) if k == last => log.repeats += 1,
+                        Some(last) if k < last => log.backwards += 1,
+                        Some(last) => {
+                            log.distinct += 1;
+                            log.max_step = log.max_step.max(k - last);
+                        }
+                        None => log.distinct += 1,
+                    }
+                    log.last = Some(log.last.map_or(k, |l| l.max(k)));
+                }
+            }
+        };
+        let deadline = async {
+            while phase.get() < 3 {
+                embassy_time::Timer::after_millis(1).await;
+            }
+            embassy_time::Timer::after_millis(50).await;
+        };
+        let reader = async { matches!(select(reader, deadline).await, Either::First(())) };
+        let (_, _, _, read_to_the_end) =
+            embassy_futures::join::join4(source_run, head_sim, sampler, reader).await;
+        drop(source);
+        defmt::info!("head: {}", log);
+        defmt::info!("levels: {}", lv);
+
+        assert!(
+            !underrun.get(),
+            "the source's DMA ran out of words (test bench too slow)"
+        );
+        assert!(
+            read_to_the_end,
+            "the head's output stopped (or never started)"
+        );
+        assert_eq!(marks.dropped(), 0, "SYNC marks dropped");
+        // The head: what it got, in order, translated, never the flipped frame.
+        assert_eq!(log.failed, 0, "head periods failing their check");
+        assert_eq!(log.unknown, 0, "head periods that are no frame sent");
+        assert!(
+            !log.bad_seen,
+            "the frame with a flipped parity bit reached the head"
+        );
+        assert_eq!(log.backwards, 0, "frames out of order");
+        assert_eq!(log.park_before_first, 0, "park before the first frame");
+        assert_eq!(log.frames_after_park, 0, "frames after the park");
+        let first = log.first.expect("no frame reached the head");
+        assert!(
+            (recovery - 1..recovery + 10).contains(&first),
+            "first frame {}",
+            first
+        );
+        assert!(
+            log.last.is_some_and(|l| l + 4 >= N - 1),
+            "last frame {:?}",
+            log.last
+        );
+        assert!(log.max_step <= 4, "a step of {} frames", log.max_step);
+        assert!(
+            log.distinct >= (N - recovery) * 6 / 10,
+            "{} distinct frames",
+            log.distinct
+        );
+        assert!(log.park >= 1000, "{} park periods", log.park);
+        // The laser gate and the STATUS towards the controller.
+        assert_eq!(lv.gate_before, 0, "gate on before the input");
+        assert_eq!(lv.status_before, 0, "STATUS OK before the input");
+        let on = lv.gate_on_after_us.expect("gate never on");
+        assert!(on < 10_000, "gate on {} us after the input", on);
+        assert_eq!(lv.gate_drops, 0, "gate off while the input runs");
+        let ok = lv.status_ok_after_us.expect("STATUS never OK");
+        assert!(ok < 200_000, "STATUS OK {} us after the input", ok);
+        assert_eq!(lv.status_drops, 0, "STATUS fault while the input runs");
+        assert!(
+            lv.samples_after > 1000,
+            "{} samples after the input",
+            lv.samples_after
+        );
+        assert_eq!(
+            lv.gate_late, 0,
+            "gate still on 6 ms after the input stopped"
+        );
+        assert_eq!(
+            lv.status_late, 0,
+            "STATUS still OK 250 ms after the input stopped"
+        );
+        assert!(!gate_high(), "gate on at the end");
+    }
+}
