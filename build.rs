@@ -10,7 +10,10 @@
 //!    go to `OUT_DIR/bridge_roles.rs` as a `Roles` constant (`config::BAKED_ROLES`):
 //!    the bridge loops pick their receiver and encoder by it, so the compiler leaves
 //!    the other roles' receivers and encoders out of the image (and out of ITCM;
-//!    README "Memory placement").
+//!    README "Memory placement"). The same pair is emitted as the cfg
+//!    `bridge_pairing = "<controller>_to_<head>"` (e.g. `"xy2_to_xy3"`): the
+//!    hardware-in-the-loop binary compiles each end-to-end test only into the image
+//!    whose pairing it is written for (`firmware/hil/e2e`).
 //! 2. Put `memory.x` on the linker path and add the Cortex-M link scripts.
 
 use std::{env, fs, path::PathBuf, process};
@@ -45,6 +48,39 @@ fn main() {
     println!("cargo:rustc-link-arg-tests=-Tembedded-test.x");
     // embedded-test's macro emits `cfg(rust_analyzer)`; declare it so check-cfg is quiet.
     println!("cargo::rustc-check-cfg=cfg(rust_analyzer)");
+}
+
+/// The protocols' names in `bridge_pairing` values.
+const PROTOCOL_NAMES: [&str; 3] = ["xy2", "xy3", "hans"];
+
+/// `p`'s name in a `bridge_pairing` value (one of [`PROTOCOL_NAMES`]).
+fn cfg_name(p: Protocol) -> &'static str {
+    match p {
+        Protocol::Xy2 => "xy2",
+        Protocol::Xy3 => "xy3",
+        Protocol::Hans => "hans",
+    }
+}
+
+/// Declares `bridge_pairing` with its nine values and sets it to `config`'s.
+fn emit_pairing_cfg(config: &Config) {
+    let values: Vec<String> = PROTOCOL_NAMES
+        .iter()
+        .flat_map(|c| {
+            PROTOCOL_NAMES
+                .iter()
+                .map(move |h| format!("\"{c}_to_{h}\""))
+        })
+        .collect();
+    println!(
+        "cargo::rustc-check-cfg=cfg(bridge_pairing, values({}))",
+        values.join(", ")
+    );
+    println!(
+        "cargo::rustc-cfg=bridge_pairing=\"{}_to_{}\"",
+        cfg_name(config.controller.protocol),
+        cfg_name(config.head.protocol)
+    );
 }
 
 /// Parses, validates and writes the configuration; exits with a message on any error.
@@ -88,6 +124,7 @@ fn bake_config(out: &std::path::Path) {
         variant(config.head.protocol)
     );
     fs::write(out.join("bridge_roles.rs"), roles).expect("write OUT_DIR/bridge_roles.rs");
+    emit_pairing_cfg(&config);
 }
 
 /// Stops the build. Cargo prints a failed build script's stderr.

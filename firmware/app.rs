@@ -15,9 +15,10 @@ use embassy_stm32::Peri;
 use shared::bridge::{Config, StatusForm};
 use shared::hans::rx::Mode as HansMode;
 
-use crate::board::{Resources, WaveRes, Xy2InRes};
+use crate::board::{HansInRes, HansStatusOutRes, Resources, WaveRes, Xy2InRes, Xy3InRes};
 use crate::config::{Controller, Head, Roles};
-use crate::drivers::{backchannel, oversample_clock};
+use crate::drivers::backchannel;
+use crate::drivers::oversample_clock::{self, Fs};
 use crate::tasks::{self, bridge, bridge_hans, hans_in, hans_status_out, line, status};
 
 /// Runs the line tasks at interrupt priority. UART8 is unused on this board, so its
@@ -148,26 +149,10 @@ pub fn spawn_bridge(spawner: Spawner, ex: Executors, config: Config, r: Resource
             }
         }
         Controller::Hans => {
-            let mode = hans_in::mode_of(config.controller.hans.decode);
-            defmt::info!("hans in: {}", mode);
-            if matches!(mode, HansMode::Vote5 | HansMode::Super) {
-                // README "Tasks and executors", HANS-100 controller cost.
-                defmt::warn!(
-                    "hans in: {} costs ~3200..3400 instructions per 10 us frame settled \
-                     (QEMU), more during a young lock: at or above the decode governor's \
-                     share beside the line tasks, expect dropped input halves",
-                    mode
-                );
-            }
             if let Some(fs) = fs_ctrl {
-                ex.line
-                    .spawn(hans_in::hans_in(r.xy3_in, r.hans_in, fs, mode).unwrap());
+                controller_hans(ex, &config, r.xy3_in, r.hans_in, fs);
             }
-            ex.decode.spawn(hans_in::hans_decode(mode).unwrap());
-            ex.line
-                .spawn(hans_status_out::hans_status_out(r.hans_status_out, r.ctrl_status).unwrap());
-            // The pair-6 driver is always on: it carries the HANS STATUS stream.
-            core::mem::forget(Output::new(r.back.de, Level::High, Speed::Low));
+            controller_hans_status(ex, r.hans_status_out, r.ctrl_status, r.back.de);
         }
     }
 
@@ -250,6 +235,42 @@ pub fn controller_xy2(
     ex.line.spawn(line::xy2_in(xy2_in, word).unwrap());
     // The pair-6 driver is always on: it carries the STATUS level. Forgotten on
     // purpose: dropping an `Output` would turn the pin back into an input.
+    core::mem::forget(Output::new(de, Level::High, Speed::Low));
+}
+
+/// The HANS-100 controller input: `hans_in` (the channels `controller.hans.decode`
+/// uses, on SPI1..5 clocked by `fs`) on the line executor, `hans_decode` on the
+/// decode executor.
+pub fn controller_hans(ex: Executors, config: &Config, xy3_in: Xy3InRes, hans: HansInRes, fs: Fs) {
+    let mode = hans_in::mode_of(config.controller.hans.decode);
+    defmt::info!("hans in: {}", mode);
+    if matches!(mode, HansMode::Vote5 | HansMode::Super) {
+        // README "Tasks and executors", HANS-100 controller cost.
+        defmt::warn!(
+            "hans in: {} costs ~3200..3400 instructions per 10 us frame settled \
+             (QEMU), more during a young lock: at or above the decode governor's \
+             share beside the line tasks, expect dropped input halves",
+            mode
+        );
+    }
+    ex.line
+        .spawn(hans_in::hans_in(xy3_in, hans, fs, mode).unwrap());
+    ex.decode.spawn(hans_in::hans_decode(mode).unwrap());
+}
+
+/// The HANS STATUS stream towards a HANS-100 controller: `hans_status_out` (SAI2
+/// block B on PA0, the pair-6 driver input) on the line executor, with the pair-6
+/// driver (enable `de`) switched on for good.
+pub fn controller_hans_status(
+    ex: Executors,
+    out: HansStatusOutRes,
+    ctrl_status: Peri<'static, PA0>,
+    de: Peri<'static, PF8>,
+) {
+    ex.line
+        .spawn(hans_status_out::hans_status_out(out, ctrl_status).unwrap());
+    // The pair-6 driver is always on: it carries the HANS STATUS stream. Forgotten
+    // on purpose: dropping an `Output` would turn the pin back into an input.
     core::mem::forget(Output::new(de, Level::High, Speed::Low));
 }
 

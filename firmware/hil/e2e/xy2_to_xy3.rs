@@ -2,8 +2,8 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::{
-        e2e_positions, frame_of_x, HeadLog, Xy2Source, SRC_FRAMES, SRC_PINS, SRC_TPF,
+    use crate::e2e::xy2_source::{
+        e2e_positions, frame_of_x, Xy2Source, SRC_FRAMES, SRC_PINS, SRC_TPF,
     };
     use embassy_stm32::pac;
     use embassy_stm32::usart::UartTx;
@@ -26,6 +26,32 @@ mod tests {
     #[init]
     fn init() -> Board {
         board::init()
+    }
+
+    /// What the head received, checked period by period against the frames sent.
+    #[derive(Default, Debug, defmt::Format)]
+    struct HeadLog {
+        /// Periods decoded.
+        periods: u32,
+        /// Periods where a line failed its check or was missing.
+        failed: u32,
+        /// Periods that are neither a frame sent (translated) nor the park position.
+        unknown: u32,
+        /// First and last frame number seen.
+        first: Option<u32>,
+        last: Option<u32>,
+        /// Frames seen for the first time, repeats of the last one, steps back.
+        distinct: u32,
+        repeats: u32,
+        backwards: u32,
+        /// Largest step between two distinct frames.
+        max_step: u32,
+        /// The frame with the flipped parity bit was seen.
+        bad_seen: bool,
+        /// Park periods; of them before the first frame; frames after a park.
+        park: u32,
+        park_before_first: u32,
+        frames_after_park: u32,
     }
 
     /// The whole bridge through its own tasks, for the baked default pairing
@@ -66,22 +92,16 @@ mod tests {
         use shared::bridge::{AfterHold, Timing, ZSource};
         use shared::model::Axis;
         use xy_bridge::app::{self, Executors};
-        use xy_bridge::config::{self, Controller, Head, Roles};
+        use xy_bridge::config::{self, Roles};
         const N: u32 = 30_000;
         const BAD: u32 = 12_345;
         const CHUNK: usize = xy3::rx::WINDOW / 2;
 
-        // The baked configuration this test is written for.
+        // The baked configuration this test is written for: its roles are the
+        // image's (`bridge_pairing`), the settings its expectations rest on are
+        // checked here (`bridge.toml`).
         let config = config::load().unwrap();
         let roles = Roles::of(&config);
-        assert_eq!(
-            roles,
-            Roles {
-                controller: Controller::Xy2,
-                head: Head::Xy3
-            },
-            "build the HIL with the default bridge.toml (README, HIL)"
-        );
         let a = config.axes;
         assert!(
             !a.swap_xy && !a.invert_x && !a.invert_y && !a.invert_z,

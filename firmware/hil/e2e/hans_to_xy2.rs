@@ -1,0 +1,492 @@
+//! A HANS-100 controller -> XY2-100 head (`configs/hans-normal-to-xy2.toml`,
+//! `configs/hans-super-to-xy2.toml`): the HANS-100 input tasks and the waveform
+//! bridge loop with an XY2-100 encoder.
+
+#[embedded_test::tests(default_timeout = 10)]
+mod tests {
+    use embassy_futures::select::{select, Either};
+    use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
+    use embassy_stm32::peripherals::PG8;
+    use embassy_stm32::{pac, peripherals, Peri};
+    use embassy_time::{with_timeout, Duration, Instant};
+    use shared::bridge::{AfterHold, Timing, ZSource};
+    use shared::hans::frame::{write_slot, Frame, RING_BYTES, RING_SLOTS};
+    use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
+    use shared::hans::StatusReceiver;
+    use shared::model::{Alarms, FaultKind, HeadStatus};
+    use shared::xy2::rx::{Event as Xy2Event, PinMap, Receiver as Xy2Receiver};
+    use shared::xy2::{Frame as Frame2, LinkConfig, Mode};
+    use xy_bridge::app::{self, Executors};
+    use xy_bridge::board::{self, Board, HansStatusInRes, HANS_FS_HZ};
+    use xy_bridge::config::{self, Roles};
+    use xy_bridge::dma_ring;
+    use xy_bridge::drivers::oversample_clock;
+    use xy_bridge::drivers::serial_tx::SerialTx;
+    use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
+    use xy_bridge::drivers::xy2_sampler::Xy2Sampler;
+    use xy_bridge::tasks::Irqs;
+
+    #[init]
+    fn init() -> Board {
+        board::init()
+    }
+
+    /// The ring slot whose frame is sent with one bit flipped.
+    const BAD: u32 = 5;
+    /// Samples per read of the head's XY2 output (25 frames of 20 bits).
+    const CHUNK: usize = 500;
+    /// How long the controller sends.
+    const RUN: Duration = Duration::from_millis(300);
+
+    /// Head positions (X, Y, Z, 16 bits) of the frame in ring slot `slot`: none is
+    /// the park position's 0x8000 on X, and no two slots share an X.
+    fn positions(slot: u32) -> [u16; 3] {
+        [
+            (0x1000 + slot * 0x1357) as u16,
+            (0x2345 + slot * 0x0F0F) as u16,
+            (0xC000 - slot * 0x0777) as u16,
+        ]
+    }
+
+    /// The controller's frame in slot `slot`: each position MSB-aligned in its
+    /// 20-bit word (low four bits zero, so the 20 -> 16-bit resize is exact), DATA3
+    /// with extension code 0 (a Z position: `shared::hans::ext`).
+    fn frame_of(slot: u32) -> Frame {
+        let [x, y, z] = positions(slot).map(|v| u32::from(v) << 4);
+        // Every word is below 2^20.
+        Frame::new(x, y, z).unwrap()
+    }
+
+    /// What the head received, checked period by period against the ring's frames.
+    #[derive(Default, Debug, defmt::Format)]
+    struct HeadLog {
+        /// Periods decoded, and of them the ones before the input started.
+        periods: u32,
+        before_input: u32,
+        /// Periods where a line failed its check or was missing, framing faults.
+        failed: u32,
+        framing: u32,
+        /// Periods that are neither a ring frame (translated) nor the park position.
+        unknown: u32,
+        /// Frames seen: the same slot as the last one, a step forward of 1..=4
+        /// slots, a step of 5..=7 (back, or further than the bridge may skip).
+        frames: u32,
+        repeats: u32,
+        distinct: u32,
+        backwards: u32,
+        /// The flipped slot was seen.
+        bad_seen: bool,
+        /// Park periods; of them before the first frame; frames after a park.
+        park: u32,
+        park_before_first: u32,
+        frames_after_park: u32,
+    }
+
+    /// One look at the HANS STATUS stream towards the controller (PA0): SPI6,
+    /// clocked by fs on TIM3 CH2 (PC7, which this pairing leaves free), captures
+    /// 1024 words (41 frame periods) from a fresh start, decoded by `shared`'s
+    /// HANS-100 receiver (channel 1) as the controller would.
+    #[derive(Default, Debug, defmt::Format)]
+    struct StatusLook {
+        /// Frames decoded, frames failing their check.
+        frames: u32,
+        failed: u32,
+        /// The alarms the frames report (`StatusReceiver` over all of them).
+        alarms: u32,
+    }
+
+    async fn status_look(s: &mut HansStatusInRes, ring: &mut [u16]) -> StatusLook {
+        let no_nss: Option<Peri<'_, PG8>> = None;
+        let mut rx = SpiSlaveRx::new(
+            s.spi.reborrow(),
+            s.sck.reborrow(),
+            s.mosi.reborrow(),
+            no_nss,
+            s.dma.reborrow(),
+            Irqs,
+            ring,
+        )
+        .unwrap();
+        let mut words = [0u16; 1024];
+        with_timeout(Duration::from_millis(200), rx.read_exact(&mut words))
+            .await
+            .unwrap()
+            .unwrap();
+        let mut hans_rx = HansRx::new(HANS_FS_HZ, HansMode::Normal { channel: 1 }).unwrap();
+        let mut receiver = StatusReceiver::new();
+        let mut status = HeadStatus::default();
+        let mut look = StatusLook::default();
+        hans_rx.push(&[&words], &mut |ev| match ev {
+            RxEvent::Frame(f) => {
+                look.frames += 1;
+                receiver.apply(&f, &mut status);
+            }
+            RxEvent::Fault {
+                kind: FaultKind::CheckFailed,
+                ..
+            } => look.failed += 1,
+            RxEvent::Fault { .. } => {}
+        });
+        look.alarms = status.alarms.0;
+        look
+    }
+
+    /// The whole bridge through its own tasks for a HANS-100 controller and an
+    /// XY2-100 head (axis map identity, Z from the input, free-running at 100 kHz):
+    /// `app`'s per-side functions spawn the supervisor (watchdog, laser gate), LEDs
+    /// and statistics, `hans_in` (line executor) and `hans_decode` (decode
+    /// executor) on the TIM3 CH1 oversampling clock, `hans_status_out`, the head's
+    /// STATUS level input and `bridge_wave_out` with the XY2-100 encoder, as
+    /// `app::spawn_bridge` does for this pairing. SAI1 (the HANS-100 head output,
+    /// which this pairing leaves free) plays the controller: its ring idles at zeros
+    /// (no frame on the line), then carries eight frames for 300 ms (slot 5 with one
+    /// bit flipped) into all five channels, then zeros again. The head's XY2-100
+    /// output is sampled on the controller-side XY2 input (TIM1 ETR on CLK, port G,
+    /// also free here) and decoded by `shared::xy2::rx::Receiver`. A test GPIO holds
+    /// the head's STATUS level at OK (the gate waits for the head's first status,
+    /// `failsafe.status_timeout_us`).
+    ///
+    /// Checks: every head period decodes (no failed line, no framing fault) and is
+    /// a ring frame, translated (X, Y, Z each `>> 4`: 20 -> 16 bits), or the park
+    /// position; the ring's order is kept (from one frame to the next the slot steps
+    /// by 0..=4, never back), at least 60 % of the input's frame periods reach the
+    /// head as a new frame; the flipped slot never; no park before the first frame,
+    /// then park and nothing else after the input stops (at least 1000 periods).
+    /// The laser gate (PF13 pad): off before the input, on within 10 ms of it and
+    /// on until it stops, off within 6 ms after and for good.
+    ///
+    /// Jumpers: PE6 (SAI1_SD_A) -> PD7, PC1, PC12, PE14, PF9; PC6 (TIM3 CH1, fs)
+    /// -> PA5, PB10, PC10, PE12, PF7 (as `hans_controller_loopback`; normal mode on
+    /// channel 1 needs PE6 -> PD7 and PC6 -> PA5 only); head PD0 (CLK) -> PE7, PD1
+    /// (SYNC) -> PG0, PD2 (X) -> PG1, PD3 (Y) -> PG2, PD10 (Z) -> PG3; PE2 (test
+    /// GPIO, head STATUS level) -> PG9.
+    #[test]
+    #[timeout(20)]
+    async fn bridge_tasks_hans_to_xy2_end_to_end(board: Board) {
+        // The baked configuration this test is written for: its roles are the
+        // image's (`bridge_pairing`), the settings its expectations rest on are
+        // checked here.
+        let config = config::load().unwrap();
+        let roles = Roles::of(&config);
+        let a = config.axes;
+        assert!(
+            !a.swap_xy && !a.invert_x && !a.invert_y && !a.invert_z,
+            "axis map"
+        );
+        assert_eq!((a.offset_x, a.offset_y, a.offset_z), (0, 0, 0), "offsets");
+        assert_eq!(config.z.source, ZSource::Input);
+        assert_eq!(config.head.xy2.mode, Mode::Standard16);
+        assert_eq!(config.output.timing, Timing::FreeRunning);
+        assert_eq!(config.output.frame_rate_hz, 100_000);
+        assert_eq!(config.failsafe.after_hold, AfterHold::Park);
+        assert_eq!(config.laser.gate, shared::bridge::GateSource::LinkOk);
+        let f = config.failsafe;
+        let park = [f.park_x, f.park_y, f.park_z].map(|v| (v >> 4) as u16);
+        assert!(
+            (0..RING_SLOTS as u32).all(|s| positions(s) != park),
+            "a frame looks parked"
+        );
+        let recovery = f.recovery_frames;
+        // The head's STATUS level: OK in the configured polarity.
+        let status_ok_high = shared::xy2::StatusLevel {
+            polarity: config.head.xy2.polarity,
+        }
+        .health(true)
+            == shared::xy2::Health::Ok;
+
+        // The controller's ring: slot 5's frame with one bit flipped in the middle
+        // (inside a complement pair), as `hans_controller_loopback`.
+        let mut ring_bytes = [0u8; RING_BYTES];
+        for slot in 0..RING_SLOTS {
+            write_slot(&mut ring_bytes, slot, &frame_of(slot as u32)).unwrap();
+        }
+        let flip = BAD as usize * 125 + 60;
+        ring_bytes[flip / 8] ^= 0x80 >> (flip % 8);
+        let slot_of = |p: [u16; 3]| (0..RING_SLOTS as u32).find(|&s| positions(s) == p);
+
+        let spawner = unsafe {
+            // SAFETY: `embedded-test` (feature `embassy-010`) runs async tests as
+            // tasks of embassy's thread-mode executor, so the context is embassy's.
+            embassy_executor::Spawner::for_current_executor()
+        }
+        .await;
+        let r = board.res;
+
+        // The head's STATUS level, held at OK.
+        // SAFETY: PE2 is in no `board::Resources` group and no firmware task uses
+        // it; this test is its only user.
+        let status_pin: Peri<'static, AnyPin> = unsafe { peripherals::PE2::steal() }.into();
+        let _head_status = Output::new(status_pin, Level::from(status_ok_high), Speed::Low);
+        // The controller, idle: zeros on the line.
+        let ring = dma_ring!(".sram2", u8, RING_BYTES);
+        let o = r.hans_out;
+        let mut channel = None;
+        let mut controller = SerialTx::new(o.sai, o.sd, o.dma, Irqs, &mut channel, ring);
+
+        // The firmware's tasks for this pairing, spawned as `app::spawn_bridge` does.
+        let leds = [board.led_green, board.led_yellow, board.led_red];
+        app::spawn_supervision(spawner, board.iwdg, board.laser_gate, leds, false);
+        let ex = Executors::start();
+        let head_enable = app::head_drivers(r.head_enable, r.head_mux, roles.head);
+        // fs on CH1 for the controller input, as `spawn_bridge` starts it, and on
+        // CH2 (PC7, unused by this pairing) for the test's STATUS read-back.
+        let fs = oversample_clock::start(r.fs.tim, Some(r.fs.ctrl), Some(r.fs.status));
+        let mut fs_status = fs.status;
+        fs_status.run();
+        app::controller_hans(ex, &config, r.xy3_in, r.hans_in, fs.ctrl);
+        app::controller_hans_status(ex, r.hans_status_out, r.ctrl_status, r.back.de);
+        app::head_wave(
+            spawner,
+            ex,
+            &config,
+            roles,
+            r.wave,
+            head_enable,
+            r.head_status,
+        );
+
+        // The bridge switches the head drivers on once its idle pattern plays; the
+        // mux select stays driven low (waveform).
+        let pf = pac::GPIOF;
+        let t0 = Instant::now();
+        while pf.odr().read().odr(11) != pac::gpio::vals::Odr::HIGH {
+            assert!(
+                t0.elapsed() < Duration::from_millis(100),
+                "head drivers never enabled"
+            );
+            embassy_time::Timer::after_micros(100).await;
+        }
+        assert_eq!(
+            pf.moder().read().moder(15),
+            pac::gpio::vals::Moder::OUTPUT,
+            "PF15 released"
+        );
+        assert_eq!(
+            pf.odr().read().odr(15),
+            pac::gpio::vals::Odr::LOW,
+            "PF15 not on the waveform"
+        );
+        // Head side read back on the controller-side XY2 input: TIM1 samples port G
+        // on every falling edge of the head's CLK (PE7).
+        let x = r.xy2_in;
+        // SYNC, X, Y, Z out of their analog reset state (as `line::xy2_in`).
+        let _data = x.data.inputs();
+        let in_ring = dma_ring!(".sram2", u16, 8 * CHUNK);
+        let mut sampler = Xy2Sampler::new(x.tim, x.clk, x.dma, Irqs, pac::GPIOG, in_ring);
+        let link = LinkConfig {
+            mode: config.head.xy2.mode,
+            parity: config.head.xy2.parity,
+        };
+        let pins = PinMap {
+            sync: 0,
+            x: 1,
+            y: 2,
+            z: Some(3),
+        };
+        let mut rx = Xy2Receiver::new(pins, link).unwrap();
+
+        let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
+
+        // Phases, set by the controller: 0 before the input, 1 while it sends, 2
+        // once the ring is back at zeros (`stop_at`), 3 done.
+        let phase = core::cell::Cell::new(0u8);
+        let input_at = core::cell::Cell::new(Instant::now());
+        let stop_at = core::cell::Cell::new(None);
+
+        let controller_run = async {
+            embassy_time::Timer::after_millis(30).await;
+            // The slot being sent may mix zeros and its frame: it fails its check.
+            controller.update(|buf| buf.copy_from_slice(&ring_bytes));
+            input_at.set(Instant::now());
+            phase.set(1);
+            embassy_time::Timer::after(RUN).await;
+            phase.set(2);
+            controller.update(|buf| buf.fill(0));
+            stop_at.set(Some(Instant::now()));
+            embassy_time::Timer::after_millis(300).await;
+            phase.set(3);
+        };
+
+        // The gate every 100 us: violations counted per phase.
+        #[derive(Default, Debug, defmt::Format)]
+        struct Gate {
+            before: u32,
+            on_after_us: Option<u64>,
+            drops: u32,
+            late: u32,
+            samples_after: u32,
+        }
+        let mut gate = Gate::default();
+        let gate_sampler = async {
+            loop {
+                let g = gate_high();
+                match phase.get() {
+                    0 => gate.before += u32::from(g),
+                    1 => {
+                        let t = input_at.get().elapsed().as_micros();
+                        match (gate.on_after_us, g) {
+                            (None, true) => gate.on_after_us = Some(t),
+                            (Some(_), false) => gate.drops += 1,
+                            _ => {}
+                        }
+                    }
+                    2 => {
+                        if let Some(t) = stop_at.get().map(|t: Instant| t.elapsed()) {
+                            gate.samples_after += 1;
+                            if t > Duration::from_millis(6) && g {
+                                gate.late += 1;
+                            }
+                        }
+                    }
+                    _ => break,
+                }
+                embassy_time::Timer::after_micros(100).await;
+            }
+        };
+
+        // The STATUS towards the controller, looked at before the input, 100 ms into
+        // it and 100 ms after it stopped.
+        let mut s = r.hans_status_in;
+        let status_ring = dma_ring!(".sram4", u16, 4096);
+        let mut looks: [StatusLook; 3] = Default::default();
+        let status_run = async {
+            embassy_time::Timer::after_millis(15).await;
+            looks[0] = status_look(&mut s, status_ring).await;
+            while phase.get() < 1 || input_at.get().elapsed() < Duration::from_millis(100) {
+                embassy_time::Timer::after_millis(1).await;
+            }
+            looks[1] = status_look(&mut s, status_ring).await;
+            while stop_at
+                .get()
+                .is_none_or(|t: Instant| t.elapsed() < Duration::from_millis(100))
+            {
+                embassy_time::Timer::after_millis(1).await;
+            }
+            looks[2] = status_look(&mut s, status_ring).await;
+        };
+
+        let mut log = HeadLog::default();
+        let mut overrun = false;
+        // Reads the samples a chunk at a time and checks each period decoded. The
+        // head never stops once it started (hold, then park), so the loop sees the
+        // end of the run within a chunk; if it never starts, the deadline ends it.
+        let reader = async {
+            let mut samples = [0u16; CHUNK];
+            let mut last: Option<u32> = None;
+            while phase.get() < 3 {
+                if sampler.read_exact(&mut samples).await.is_err() {
+                    overrun = true;
+                    return;
+                }
+                let before = phase.get() == 0;
+                rx.feed(&samples, &mut |e| {
+                    let p = match e {
+                        Xy2Event::Frame(p) => p,
+                        Xy2Event::Framing(_) => {
+                            log.framing += 1;
+                            return;
+                        }
+                        Xy2Event::Resync => return,
+                    };
+                    log.periods += 1;
+                    log.before_input += u32::from(before);
+                    let (
+                        Ok(Frame2::Position16(vx)),
+                        Ok(Frame2::Position16(vy)),
+                        Some(Ok(Frame2::Position16(vz))),
+                    ) = (p.x, p.y, p.z)
+                    else {
+                        log.failed += 1;
+                        return;
+                    };
+                    let v = [vx, vy, vz];
+                    if v == park {
+                        log.park += 1;
+                        log.park_before_first += u32::from(last.is_none());
+                        return;
+                    }
+                    let Some(slot) = slot_of(v) else {
+                        log.unknown += 1;
+                        return;
+                    };
+                    log.frames += 1;
+                    log.frames_after_park += u32::from(log.park > 0);
+                    log.bad_seen |= slot == BAD;
+                    match last.map(|l| (slot + RING_SLOTS as u32 - l) % RING_SLOTS as u32) {
+                        Some(0) => log.repeats += 1,
+                        Some(1..=4) | None => log.distinct += 1,
+                        Some(_) => log.backwards += 1,
+                    }
+                    last = Some(slot);
+                });
+            }
+        };
+        let deadline = async {
+            while phase.get() < 3 {
+                embassy_time::Timer::after_millis(1).await;
+            }
+            embassy_time::Timer::after_millis(50).await;
+        };
+        let reader = async { matches!(select(reader, deadline).await, Either::First(())) };
+        let (_, _, _, read_to_the_end) =
+            embassy_futures::join::join4(controller_run, gate_sampler, status_run, reader).await;
+        drop(controller);
+        defmt::info!("head: {}", log);
+        defmt::info!("gate: {}", gate);
+        defmt::info!("STATUS: {}", looks);
+
+        assert!(
+            !overrun,
+            "the sampler's ring ran over (test bench too slow)"
+        );
+        assert!(
+            read_to_the_end,
+            "the head's output stopped (or never started)"
+        );
+        // The head: what it got, in order, translated, never the flipped frame.
+        assert_eq!(log.before_input, 0, "head periods before the input");
+        assert_eq!(log.failed, 0, "head periods failing their check");
+        assert_eq!(log.framing, 0, "head periods with a wrong SYNC pattern");
+        assert_eq!(log.unknown, 0, "head periods that are no frame sent");
+        assert!(
+            !log.bad_seen,
+            "the frame with a flipped bit reached the head"
+        );
+        assert_eq!(log.backwards, 0, "frames out of order");
+        assert_eq!(log.park_before_first, 0, "park before the first frame");
+        assert_eq!(log.frames_after_park, 0, "frames after the park");
+        // 100 kHz input for RUN, less the recovery run (`failsafe.recovery_frames`).
+        let input_frames = (RUN.as_micros() / 10) as u32;
+        assert!(
+            log.distinct >= input_frames.saturating_sub(recovery) * 6 / 10,
+            "{} distinct frames",
+            log.distinct
+        );
+        assert!(log.park >= 1000, "{} park periods", log.park);
+        // The laser gate.
+        assert_eq!(gate.before, 0, "gate on before the input");
+        let on = gate.on_after_us.expect("gate never on");
+        assert!(on < 10_000, "gate on {} us after the input", on);
+        assert_eq!(gate.drops, 0, "gate off while the input runs");
+        assert!(
+            gate.samples_after > 1000,
+            "{} samples after the input",
+            gate.samples_after
+        );
+        assert_eq!(gate.late, 0, "gate still on 6 ms after the input stopped");
+        assert!(!gate_high(), "gate on at the end");
+        // The STATUS towards the controller: frames of the bridge's, none cut, the
+        // lost input reported (as a communication alarm: `hans::neutral`) before
+        // and after the input, not while it runs.
+        for (look, lost) in looks.iter().zip([true, false, true]) {
+            assert!(look.frames >= 28, "STATUS: {} frames", look.frames);
+            assert_eq!(look.failed, 0, "STATUS frames failing their check");
+            assert_eq!(
+                Alarms(look.alarms).contains(Alarms::COMMUNICATION),
+                lost,
+                "STATUS alarms {:#x}",
+                look.alarms
+            );
+        }
+    }
+}
