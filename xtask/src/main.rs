@@ -11,7 +11,9 @@
 //!    (firmware, `shared` with `defmt`, and `cm7`).
 //! 3. All host tests (`shared` unit + property tests, `host-tests` integration tests).
 //! 4. The firmware release build, then its flash and RAM use; the hardware-in-the-loop
-//!    test binary (`firmware/hil`, run on a board with `cargo test --test hil`).
+//!    test binary (`firmware/hil`, run on a board with `cargo test --test hil`), for
+//!    the default configuration and, built and linted, for every other pairing with
+//!    an end-to-end test ([`HIL_PAIRINGS`]).
 //! 5. `cm7` under QEMU (Cortex-M7): `shared`'s on-target tests, then the per-frame
 //!    instruction counts against the budget (`qemu.rs`, `bench.rs`), and a check that
 //!    the per-function profile (`cargo xtask profile`, `profile.rs`) adds up to them.
@@ -41,6 +43,12 @@ const FLASH_BUDGET: u64 = 256 * 1024;
 /// proptest's seed variable, and the seed the test command uses when it is unset.
 const PROPTEST_SEED_VAR: &str = "PROPTEST_RNG_SEED";
 const PROPTEST_SEED: &str = "20261202";
+/// The configurations, besides the default `bridge.toml`, whose HIL image carries an
+/// end-to-end test through the firmware's tasks (`firmware/hil/e2e`: each test is
+/// compiled only into the image of its pairing, so each image is built once).
+const HIL_PAIRINGS: &[&str] = &["configs/hans-normal-to-xy2.toml"];
+/// The build script's variable naming the configuration to bake (`build.rs`).
+const CONFIG_VAR: &str = "XY_BRIDGE_CONFIG";
 /// ITCM and DTCM sizes (RM0433 section 2.3.2), for the size report.
 const ITCM_KIB: u64 = 64;
 const DTCM_KIB: u64 = 128;
@@ -161,14 +169,22 @@ fn test_all() -> Result {
     firmware_size()?;
     // The hardware-in-the-loop tests need a board to run, but must always build.
     cargo(&["build", "--release", "--target", MCU, "--test", "hil"])?;
-    // The HIL binary links every role's `shared` code (the HANS-100 receiver too,
-    // which the default firmware configuration leaves out): same placement rules.
-    let hil = newest_hil_elf()?;
-    let tcm = placement::check(&hil, &root().join("memory.x"))?;
-    println!(
-        "hil: ITCM {} bytes ({} hot functions; cold in flash: {}), DTCM {} bytes",
-        tcm.itcm, tcm.itcm_functions, tcm.cold_functions, tcm.dtcm
-    );
+    let baked = std::env::var(CONFIG_VAR).unwrap_or_else(|_| "bridge.toml".into());
+    hil_placement(&baked)?;
+    // The other pairings' images: lint and build (the crate is rebuilt for each
+    // baked configuration; the dependencies are not), same placement rules.
+    for config in HIL_PAIRINGS {
+        let env = [(CONFIG_VAR, *config)];
+        cargo_env(
+            &[&mcu_clippy[..], &["--tests"], DENY_WARNINGS].concat(),
+            &env,
+        )?;
+        cargo_env(
+            &["build", "--release", "--target", MCU, "--test", "hil"],
+            &env,
+        )?;
+        hil_placement(config)?;
+    }
     qemu::run()?;
     fuzz::run()?;
     eprintln!(
@@ -217,6 +233,19 @@ fn firmware_size() -> Result {
             size.flash
         ));
     }
+    Ok(())
+}
+
+/// Placement check of the HIL binary cargo built last, baked with `config`. The HIL
+/// binary links every role's `shared` code (the HANS-100 receiver too, which the
+/// default firmware configuration leaves out): same placement rules.
+fn hil_placement(config: &str) -> Result {
+    let hil = newest_hil_elf()?;
+    let tcm = placement::check(&hil, &root().join("memory.x"))?;
+    println!(
+        "hil ({config}): ITCM {} bytes ({} hot functions; cold in flash: {}), DTCM {} bytes",
+        tcm.itcm, tcm.itcm_functions, tcm.cold_functions, tcm.dtcm
+    );
     Ok(())
 }
 

@@ -10,8 +10,9 @@ mod tests {
     use embassy_stm32::{pac, peripherals, Peri};
     use embassy_time::{with_timeout, Duration, Instant};
     use shared::bridge::{AfterHold, Timing, ZSource};
-    use shared::hans::frame::{write_slot, Frame, RING_BYTES, RING_SLOTS};
+    use shared::hans::frame::{read_slot, write_slot, Frame, FRAME_BITS, RING_BYTES, RING_SLOTS};
     use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
+    use shared::hans::tx::LEAD_SLOTS;
     use shared::hans::StatusReceiver;
     use shared::model::{Alarms, FaultKind, HeadStatus};
     use shared::xy2::rx::{Event as Xy2Event, PinMap, Receiver as Xy2Receiver};
@@ -31,8 +32,14 @@ mod tests {
         board::init()
     }
 
-    /// The ring slot whose frame is sent with one bit flipped.
-    const BAD: u32 = 5;
+    /// The ring slot that carries the frame with a flipped bit for [`BAD_FOR`],
+    /// [`BAD_AT`] into the run (once the link runs: in normal mode a check failure
+    /// breaks the recovery run, so a bad frame every lap would keep the link down).
+    const BAD_SLOT: usize = 5;
+    const BAD_AT: Duration = Duration::from_millis(100);
+    const BAD_FOR: Duration = Duration::from_millis(10);
+    /// The frame number whose corrupted copy is sent: no other slot carries it.
+    const BAD_FRAME: u32 = RING_SLOTS as u32;
     /// Samples per read of the head's XY2 output (25 frames of 20 bits).
     const CHUNK: usize = 500;
     /// How long the controller sends.
@@ -57,6 +64,35 @@ mod tests {
         Frame::new(x, y, z).unwrap()
     }
 
+    /// Copies slot `slot`'s bits of `image` into `ring` (its first and last bytes
+    /// are shared with the neighbouring slots, which keep theirs).
+    fn copy_slot(ring: &mut [u8; RING_BYTES], image: &[u8; RING_BYTES], slot: usize) {
+        for bit in slot * FRAME_BITS..(slot + 1) * FRAME_BITS {
+            let mask = 0x80u8 >> (bit % 8);
+            ring[bit / 8] = ring[bit / 8] & !mask | image[bit / 8] & mask;
+        }
+    }
+
+    /// Runs `f` on the controller's ring with interrupts off, only while slot
+    /// `slot` is at least `LEAD_SLOTS` ahead of the one the DMA fetches and not the
+    /// one just behind it (so neither the DMA nor the SAI FIFO holds any of its
+    /// bits: `drivers::serial_tx`); returns whether it ran. A slot is then never
+    /// sent half old, half new.
+    fn update_ahead(
+        tx: &mut SerialTx<'_>,
+        slot: usize,
+        f: impl FnOnce(&mut [u8; RING_BYTES]),
+    ) -> bool {
+        cortex_m::interrupt::free(|_| {
+            let ahead = (slot + RING_SLOTS - tx.sending_slot()) % RING_SLOTS;
+            let safe = (LEAD_SLOTS..RING_SLOTS - 1).contains(&ahead);
+            if safe {
+                tx.update(f);
+            }
+            safe
+        })
+    }
+
     /// What the head received, checked period by period against the ring's frames.
     #[derive(Default, Debug, defmt::Format)]
     struct HeadLog {
@@ -74,7 +110,7 @@ mod tests {
         repeats: u32,
         distinct: u32,
         backwards: u32,
-        /// The flipped slot was seen.
+        /// The frame with the flipped bit was seen.
         bad_seen: bool,
         /// Park periods; of them before the first frame; frames after a park.
         park: u32,
@@ -138,28 +174,36 @@ mod tests {
     /// executor) on the TIM3 CH1 oversampling clock, `hans_status_out`, the head's
     /// STATUS level input and `bridge_wave_out` with the XY2-100 encoder, as
     /// `app::spawn_bridge` does for this pairing. SAI1 (the HANS-100 head output,
-    /// which this pairing leaves free) plays the controller: its ring idles at zeros
-    /// (no frame on the line), then carries eight frames for 300 ms (slot 5 with one
-    /// bit flipped) into all five channels, then zeros again. The head's XY2-100
-    /// output is sampled on the controller-side XY2 input (TIM1 ETR on CLK, port G,
-    /// also free here) and decoded by `shared::xy2::rx::Receiver`. A test GPIO holds
-    /// the head's STATUS level at OK (the gate waits for the head's first status,
-    /// `failsafe.status_timeout_us`).
+    /// which this pairing leaves free) plays the controller into all five channels:
+    /// its ring idles at zeros (no frame on the line), then carries eight frames
+    /// for 300 ms, then zeros again; 100 ms into the run slot 5 carries another
+    /// frame with one bit flipped for 10 ms (~125 times). The head's XY2-100 output
+    /// is sampled on the controller-side XY2 input (TIM1 ETR on CLK, port G, also
+    /// free here) and decoded by `shared::xy2::rx::Receiver`. A test GPIO holds the
+    /// head's STATUS level at OK (the gate waits for the head's first status,
+    /// `failsafe.status_timeout_us`). SPI6 on TIM3 CH2 reads the HANS STATUS
+    /// towards the controller three times (before, 50 ms into, and 100 ms after the
+    /// input).
     ///
-    /// Checks: every head period decodes (no failed line, no framing fault) and is
-    /// a ring frame, translated (X, Y, Z each `>> 4`: 20 -> 16 bits), or the park
-    /// position; the ring's order is kept (from one frame to the next the slot steps
-    /// by 0..=4, never back), at least 60 % of the input's frame periods reach the
-    /// head as a new frame; the flipped slot never; no park before the first frame,
-    /// then park and nothing else after the input stops (at least 1000 periods).
-    /// The laser gate (PF13 pad): off before the input, on within 10 ms of it and
-    /// on until it stops, off within 6 ms after and for good.
+    /// Checks: no head period before the input; then every one decodes (no failed
+    /// line; no framing fault once the first period is in) and is a ring frame,
+    /// translated (X, Y, Z each `>> 4`: 20 -> 16 bits), or the park position; the
+    /// ring's order is kept (from one frame to the next the slot steps by 0..=4,
+    /// never back), at least 60 % of the input's frame periods reach the head as a
+    /// new frame; the flipped frame never; no park before the first frame, then
+    /// park and nothing else after the input stops (at least 1000 periods). The
+    /// laser gate (PF13 pad): off before the input, on within 10 ms of it and on
+    /// until it stops, off within 6 ms after and for good. The STATUS towards the
+    /// controller: each look decodes >= 28 frames, none failing its check, with the
+    /// lost input reported (communication alarm) before and after the input and
+    /// not 50 ms into it.
     ///
     /// Jumpers: PE6 (SAI1_SD_A) -> PD7, PC1, PC12, PE14, PF9; PC6 (TIM3 CH1, fs)
     /// -> PA5, PB10, PC10, PE12, PF7 (as `hans_controller_loopback`; normal mode on
     /// channel 1 needs PE6 -> PD7 and PC6 -> PA5 only); head PD0 (CLK) -> PE7, PD1
     /// (SYNC) -> PG0, PD2 (X) -> PG1, PD3 (Y) -> PG2, PD10 (Z) -> PG3; PE2 (test
-    /// GPIO, head STATUS level) -> PG9.
+    /// GPIO, head STATUS level) -> PG9; STATUS PA0 (SAI2_SD_B) -> PG14, PC7 (TIM3
+    /// CH2) -> PB3.
     #[test]
     #[timeout(20)]
     async fn bridge_tasks_hans_to_xy2_end_to_end(board: Board) {
@@ -194,14 +238,25 @@ mod tests {
         .health(true)
             == shared::xy2::Health::Ok;
 
-        // The controller's ring: slot 5's frame with one bit flipped in the middle
-        // (inside a complement pair), as `hans_controller_loopback`.
+        // The controller's ring, and the same ring with `BAD_FRAME`'s pattern in
+        // `BAD_SLOT`, one bit flipped in the middle (inside a complement pair), as
+        // `hans_controller_loopback` flips it.
         let mut ring_bytes = [0u8; RING_BYTES];
         for slot in 0..RING_SLOTS {
             write_slot(&mut ring_bytes, slot, &frame_of(slot as u32)).unwrap();
         }
-        let flip = BAD as usize * 125 + 60;
-        ring_bytes[flip / 8] ^= 0x80 >> (flip % 8);
+        let mut ring_bad = ring_bytes;
+        write_slot(&mut ring_bad, BAD_SLOT, &frame_of(BAD_FRAME)).unwrap();
+        let flip = BAD_SLOT * FRAME_BITS + 60;
+        ring_bad[flip / 8] ^= 0x80 >> (flip % 8);
+        assert!(
+            read_slot(&ring_bad, BAD_SLOT).is_err(),
+            "the flipped frame passes"
+        );
+        assert!(
+            (0..RING_SLOTS as u32).all(|s| positions(s) != positions(BAD_FRAME)),
+            "BAD_FRAME"
+        );
         let slot_of = |p: [u16; 3]| (0..RING_SLOTS as u32).find(|&s| positions(s) == p);
 
         let spawner = unsafe {
@@ -299,7 +354,17 @@ mod tests {
             controller.update(|buf| buf.copy_from_slice(&ring_bytes));
             input_at.set(Instant::now());
             phase.set(1);
-            embassy_time::Timer::after(RUN).await;
+            embassy_time::Timer::after(BAD_AT).await;
+            // The bad frame into its slot, and the good one back after BAD_FOR.
+            for image in [&ring_bad, &ring_bytes] {
+                while !update_ahead(&mut controller, BAD_SLOT, |ring| {
+                    copy_slot(ring, image, BAD_SLOT)
+                }) {
+                    embassy_time::Timer::after_micros(10).await;
+                }
+                embassy_time::Timer::after(BAD_FOR).await;
+            }
+            embassy_time::Timer::after(RUN - BAD_AT - BAD_FOR * 2).await;
             phase.set(2);
             controller.update(|buf| buf.fill(0));
             stop_at.set(Some(Instant::now()));
@@ -344,15 +409,15 @@ mod tests {
             }
         };
 
-        // The STATUS towards the controller, looked at before the input, 100 ms into
-        // it and 100 ms after it stopped.
+        // The STATUS towards the controller, looked at before the input, 50 ms into
+        // it (before the bad frame) and 100 ms after it stopped.
         let mut s = r.hans_status_in;
         let status_ring = dma_ring!(".sram4", u16, 4096);
         let mut looks: [StatusLook; 3] = Default::default();
         let status_run = async {
             embassy_time::Timer::after_millis(15).await;
             looks[0] = status_look(&mut s, status_ring).await;
-            while phase.get() < 1 || input_at.get().elapsed() < Duration::from_millis(100) {
+            while phase.get() < 1 || input_at.get().elapsed() < Duration::from_millis(50) {
                 embassy_time::Timer::after_millis(1).await;
             }
             looks[1] = status_look(&mut s, status_ring).await;
@@ -382,8 +447,11 @@ mod tests {
                 rx.feed(&samples, &mut |e| {
                     let p = match e {
                         Xy2Event::Frame(p) => p,
+                        // The sampler may start inside a frame (if the head
+                        // sent before the input): only a fault after the first
+                        // period counts.
                         Xy2Event::Framing(_) => {
-                            log.framing += 1;
+                            log.framing += u32::from(log.periods > 0);
                             return;
                         }
                         Xy2Event::Resync => return,
@@ -405,13 +473,17 @@ mod tests {
                         log.park_before_first += u32::from(last.is_none());
                         return;
                     }
+                    if v == positions(BAD_FRAME) {
+                        log.bad_seen = true;
+                        return;
+                    }
                     let Some(slot) = slot_of(v) else {
                         log.unknown += 1;
                         return;
                     };
                     log.frames += 1;
                     log.frames_after_park += u32::from(log.park > 0);
-                    log.bad_seen |= slot == BAD;
+
                     match last.map(|l| (slot + RING_SLOTS as u32 - l) % RING_SLOTS as u32) {
                         Some(0) => log.repeats += 1,
                         Some(1..=4) | None => log.distinct += 1,
