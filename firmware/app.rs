@@ -9,13 +9,16 @@ use embassy_executor::{InterruptExecutor, SendSpawner, Spawner};
 use embassy_stm32::gpio::{Input, Level, Output, Pull, Speed};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::{InterruptExt, Priority};
-use embassy_stm32::peripherals::{DMA1_CH5, IWDG1, PA0, PD6, PF11, PF15, PF8, PG9, USART2};
+use embassy_stm32::peripherals::{DMA1_CH5, IWDG1, PA0, PD6, PF11, PF14, PF15, PF8, PG9, USART2};
 use embassy_stm32::usart::{Uart, UartRx};
 use embassy_stm32::Peri;
 use shared::bridge::{Config, StatusForm};
 use shared::hans::rx::Mode as HansMode;
 
-use crate::board::{HansInRes, HansStatusOutRes, Resources, WaveRes, Xy2InRes, Xy3InRes};
+use crate::board::{
+    HansInRes, HansOutRes, HansStatusInRes, HansStatusOutRes, Resources, WaveRes, Xy2InRes,
+    Xy3InRes,
+};
 use crate::config::{Controller, Head, Roles};
 use crate::drivers::backchannel;
 use crate::drivers::oversample_clock::{self, Fs};
@@ -123,7 +126,15 @@ pub fn spawn_bridge(spawner: Spawner, ex: Executors, config: Config, r: Resource
 
     // Controller side.
     match roles.controller {
-        Controller::Xy2 => controller_xy2(spawner, ex, &config, r.xy2_in, r.ctrl_status, r.back.de),
+        Controller::Xy2 => controller_xy2(
+            spawner,
+            ex,
+            &config,
+            r.xy2_in,
+            r.ctrl_status,
+            r.back.de,
+            r.xy3_in.sck_buffer_oe,
+        ),
         Controller::Xy3 => {
             // The lines the controller drives that the bridge uses
             // (`controller.xy3.lines`; Z only with `z.source = "input"`, U / W only
@@ -174,16 +185,17 @@ pub fn spawn_bridge(spawner: Spawner, ex: Executors, config: Config, r: Resource
             );
         }
         Head::Hans => {
-            let hans =
-                bridge_hans::bridge_hans_out(r.hans_out, config, roles.controller, head_enable);
-            ex.line.spawn(hans.unwrap());
             if let Some(fs) = fs_status {
-                let every = shared::hans::follow::status_every(hans_ctrl);
-                defmt::info!("hans status in: every {} half decoded", every);
-                ex.line
-                    .spawn(line::hans_status_in(r.hans_status_in, fs, every).unwrap());
+                head_hans(
+                    ex,
+                    &config,
+                    roles,
+                    r.hans_out,
+                    head_enable,
+                    r.hans_status_in,
+                    fs,
+                );
             }
-            ex.decode.spawn(status::hans_status().unwrap());
         }
     }
 }
@@ -206,7 +218,8 @@ pub fn head_drivers(
 /// bridge) on the line executor, and the STATUS towards the controller on PA0 (the
 /// pair-6 driver input): a level from thread mode, or with `status = "word"` the
 /// word stream the input task plays on the controller's clock. The pair-6 driver
-/// (enable `de`) is switched on for good.
+/// (enable `de`) is switched on for good, and the XY3-100 clock buffer
+/// (`sck_buffer_oe`) off for good.
 pub fn controller_xy2(
     spawner: Spawner,
     ex: Executors,
@@ -214,6 +227,7 @@ pub fn controller_xy2(
     xy2_in: Xy2InRes,
     ctrl_status: Peri<'static, PA0>,
     de: Peri<'static, PF8>,
+    sck_buffer_oe: Peri<'static, PF14>,
 ) {
     let c = config.controller.xy2;
     let word = match c.status {
@@ -236,6 +250,10 @@ pub fn controller_xy2(
     // The pair-6 driver is always on: it carries the STATUS level. Forgotten on
     // purpose: dropping an `Output` would turn the pin back into an input.
     core::mem::forget(Output::new(de, Level::High, Speed::Low));
+    // The buffer that puts pair 2 (here the XY2-100 SYNC) on the SPI SCK bus for
+    // an XY3-100 controller stays off (OE# high, README wiring table): left in its
+    // reset state the pin floats, and so would the buffer's enable.
+    core::mem::forget(Output::new(sck_buffer_oe, Level::High, Speed::Low));
 }
 
 /// The HANS-100 controller input: `hans_in` (the channels `controller.hans.decode`
@@ -272,6 +290,28 @@ pub fn controller_hans_status(
     // The pair-6 driver is always on: it carries the HANS STATUS stream. Forgotten
     // on purpose: dropping an `Output` would turn the pin back into an input.
     core::mem::forget(Output::new(de, Level::High, Speed::Low));
+}
+
+/// The HANS-100 head: the bridge loop `bridge_hans_out` (SAI1 ring on PE6, head
+/// drivers enabled by `head_enable` once it runs) on the line executor, and the
+/// head's STATUS: `line::hans_status_in` (SPI6 clocked by `fs`, TIM3 CH2) on the
+/// line executor, `status::hans_status` on the decode executor.
+pub fn head_hans(
+    ex: Executors,
+    config: &Config,
+    roles: Roles,
+    out: HansOutRes,
+    head_enable: Output<'static>,
+    status_in: HansStatusInRes,
+    fs: Fs,
+) {
+    let hans = bridge_hans::bridge_hans_out(out, *config, roles.controller, head_enable);
+    ex.line.spawn(hans.unwrap());
+    let every = shared::hans::follow::status_every(roles.controller == Controller::Hans);
+    defmt::info!("hans status in: every {} half decoded", every);
+    ex.line
+        .spawn(line::hans_status_in(status_in, fs, every).unwrap());
+    ex.decode.spawn(status::hans_status().unwrap());
 }
 
 /// The XY3-100 head's backchannel on its own UART (USART2 RX, thread mode), at its

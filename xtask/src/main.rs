@@ -46,7 +46,10 @@ const PROPTEST_SEED: &str = "20261202";
 /// The configurations, besides the default `bridge.toml`, whose HIL image carries an
 /// end-to-end test through the firmware's tasks (`firmware/hil/e2e`: each test is
 /// compiled only into the image of its pairing, so each image is built once).
-const HIL_PAIRINGS: &[&str] = &["configs/hans-normal-to-xy2.toml"];
+const HIL_PAIRINGS: &[&str] = &[
+    "configs/hans-normal-to-xy2.toml",
+    "configs/xy2-to-hans.toml",
+];
 /// The build script's variable naming the configuration to bake (`build.rs`).
 const CONFIG_VAR: &str = "XY_BRIDGE_CONFIG";
 /// ITCM and DTCM sizes (RM0433 section 2.3.2), for the size report.

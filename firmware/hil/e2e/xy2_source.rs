@@ -1,11 +1,17 @@
 //! The XY2-100 controller the end-to-end tests play into the controller-side XY2
-//! input, and the frame numbering they check the head against.
+//! input, the frame numbering they check the head against, and the watch on the
+//! laser gate and the STATUS level towards that controller.
+
+use core::cell::Cell;
 
 use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
 use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::timer::UpDma;
 use embassy_stm32::{dma, pac, peripherals, Peri};
+use embassy_time::{Duration, Instant};
 use shared::xy2;
+use shared::xy2::{Health, StatusLevel};
+use xy_bridge::board;
 use xy_bridge::drivers::wave_out::timing_critical;
 use xy_bridge::tasks::Irqs;
 
@@ -127,4 +133,100 @@ pub(super) fn frame_of_x(x: u16) -> u32 {
         inv = inv.wrapping_mul(2u16.wrapping_sub(a.wrapping_mul(inv)));
     }
     u32::from(x.wrapping_sub(0x1234).wrapping_mul(inv))
+}
+
+/// The laser gate (PF13 pad) and the XY2-100 STATUS level towards the controller
+/// (PA0), sampled every 100 us through an end-to-end run: violations counted per
+/// phase.
+#[derive(Default, Debug, defmt::Format)]
+pub(super) struct Levels {
+    gate_before: u32,
+    status_before: u32,
+    gate_on_after_us: Option<u64>,
+    gate_drops: u32,
+    status_ok_after_us: Option<u64>,
+    status_drops: u32,
+    gate_late: u32,
+    status_late: u32,
+    samples_after: u32,
+}
+
+impl Levels {
+    /// Samples until `phase` reaches 3. Phases, set by the run's source: 0 before
+    /// the input, 1 from `input_at` while frames are written, 2 once the last one
+    /// is written (from `stop_at`, once set: the last frame played).
+    pub(super) async fn watch(
+        &mut self,
+        phase: &Cell<u8>,
+        input_at: &Cell<Instant>,
+        stop_at: &Cell<Option<Instant>>,
+        level: StatusLevel,
+    ) {
+        let gate_high =
+            || pac::GPIOF.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
+        let status = || level.health(pac::GPIOA.idr().read().idr(0) == pac::gpio::vals::Idr::HIGH);
+        loop {
+            let (g, ok) = (gate_high(), status() == Health::Ok);
+            match phase.get() {
+                0 => {
+                    self.gate_before += u32::from(g);
+                    self.status_before += u32::from(ok);
+                }
+                1 => {
+                    let t = input_at.get().elapsed().as_micros();
+                    match (self.gate_on_after_us, g) {
+                        (None, true) => self.gate_on_after_us = Some(t),
+                        (Some(_), false) => self.gate_drops += 1,
+                        _ => {}
+                    }
+                    match (self.status_ok_after_us, ok) {
+                        (None, true) => self.status_ok_after_us = Some(t),
+                        (Some(_), false) => self.status_drops += 1,
+                        _ => {}
+                    }
+                }
+                2 => {
+                    if let Some(t) = stop_at.get().map(|t| t.elapsed()) {
+                        self.samples_after += 1;
+                        if t > Duration::from_millis(6) && g {
+                            self.gate_late += 1;
+                        }
+                        if t > Duration::from_millis(250) && ok {
+                            self.status_late += 1;
+                        }
+                    }
+                }
+                _ => break,
+            }
+            embassy_time::Timer::after_micros(100).await;
+        }
+    }
+
+    /// The gate off before the input, on within 10 ms of it and until it stops,
+    /// off within 6 ms after; the STATUS "fault" before, "OK" within 200 ms of the
+    /// input and until it stops, "fault" again within 250 ms after.
+    pub(super) fn check(&self) {
+        defmt::info!("levels: {}", self);
+        assert_eq!(self.gate_before, 0, "gate on before the input");
+        assert_eq!(self.status_before, 0, "STATUS OK before the input");
+        let on = self.gate_on_after_us.expect("gate never on");
+        assert!(on < 10_000, "gate on {} us after the input", on);
+        assert_eq!(self.gate_drops, 0, "gate off while the input runs");
+        let ok = self.status_ok_after_us.expect("STATUS never OK");
+        assert!(ok < 200_000, "STATUS OK {} us after the input", ok);
+        assert_eq!(self.status_drops, 0, "STATUS fault while the input runs");
+        assert!(
+            self.samples_after > 1000,
+            "{} samples after the input",
+            self.samples_after
+        );
+        assert_eq!(
+            self.gate_late, 0,
+            "gate still on 6 ms after the input stopped"
+        );
+        assert_eq!(
+            self.status_late, 0,
+            "STATUS still OK 250 ms after the input stopped"
+        );
+    }
 }

@@ -3,15 +3,14 @@
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use crate::e2e::xy2_source::{
-        e2e_positions, frame_of_x, Xy2Source, SRC_FRAMES, SRC_PINS, SRC_TPF,
+        e2e_positions, frame_of_x, Levels, Xy2Source, SRC_FRAMES, SRC_PINS, SRC_TPF,
     };
     use embassy_stm32::pac;
     use embassy_stm32::usart::UartTx;
     use embassy_time::Duration;
     use shared::xy2::tx::Transmitter as Xy2Tx;
     use shared::xy2::{
-        decode as xy2_decode, encode as xy2_encode, Frame as Frame2, Health, LinkConfig,
-        StatusLevel,
+        decode as xy2_decode, encode as xy2_encode, Frame as Frame2, LinkConfig, StatusLevel,
     };
     use shared::xy3;
     use shared::xy3::back::{Packet, Sender, SEND_BUF_LEN};
@@ -170,7 +169,16 @@ mod tests {
         app::spawn_supervision(spawner, board.iwdg, board.laser_gate, leds, false);
         let ex = Executors::start();
         let head_enable = app::head_drivers(r.head_enable, r.head_mux, roles.head);
-        app::controller_xy2(spawner, ex, &config, r.xy2_in, r.ctrl_status, r.back.de);
+        let i = r.xy3_in;
+        app::controller_xy2(
+            spawner,
+            ex,
+            &config,
+            r.xy2_in,
+            r.ctrl_status,
+            r.back.de,
+            i.sck_buffer_oe,
+        );
         app::head_xy3_backchannel(spawner, &config, hb.uart, hb.rx, hb.rx_dma);
         app::head_wave(
             spawner,
@@ -207,7 +215,6 @@ mod tests {
         // CLK low; before, the unconfigured pins floated): SPI3 (X), SPI4 (Y), SPI5
         // (Z) slaves selected by the head's SYNC, and the SYNC marks, whose every
         // rising edge from here is a frame end.
-        let i = r.xy3_in;
         let (lx, ly, lz) = (i.x, i.y, i.z);
         let mut rx_lines = [
             SpiSlaveRx::new(
@@ -244,8 +251,6 @@ mod tests {
         let mut marks = SyncMarks::new(i.sync, i.exti, Irqs, 1024);
 
         let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
-        let status =
-            || status_level.health(pac::GPIOA.idr().read().idr(0) == pac::gpio::vals::Idr::HIGH);
 
         // Phases, set by the source: 0 before the input, 1 while frames are written,
         // 2 once the last frame is written (`stop_at`: once it played, the ring
@@ -302,59 +307,8 @@ mod tests {
         };
 
         // Gate and STATUS, every 100 us: violations counted per phase.
-        #[derive(Default, Debug, defmt::Format)]
-        struct Levels {
-            gate_before: u32,
-            status_before: u32,
-            gate_on_after_us: Option<u64>,
-            gate_drops: u32,
-            status_ok_after_us: Option<u64>,
-            status_drops: u32,
-            gate_late: u32,
-            status_late: u32,
-            samples_after: u32,
-        }
         let mut lv = Levels::default();
-        let sampler = async {
-            loop {
-                let p = phase.get();
-                let (g, st) = (gate_high(), status());
-                match p {
-                    0 => {
-                        lv.gate_before += u32::from(g);
-                        lv.status_before += u32::from(st == Health::Ok);
-                    }
-                    1 => {
-                        let t = input_at.get().elapsed().as_micros();
-                        match (lv.gate_on_after_us, g) {
-                            (None, true) => lv.gate_on_after_us = Some(t),
-                            (Some(_), false) => lv.gate_drops += 1,
-                            _ => {}
-                        }
-                        match (lv.status_ok_after_us, st == Health::Ok) {
-                            (None, true) => lv.status_ok_after_us = Some(t),
-                            (Some(_), false) => lv.status_drops += 1,
-                            _ => {}
-                        }
-                    }
-                    2 => {
-                        let Some(t) = stop_at.get().map(|t: Instant| t.elapsed()) else {
-                            embassy_time::Timer::after_micros(100).await;
-                            continue;
-                        };
-                        lv.samples_after += 1;
-                        if t > Duration::from_millis(6) && g {
-                            lv.gate_late += 1;
-                        }
-                        if t > Duration::from_millis(250) && st == Health::Ok {
-                            lv.status_late += 1;
-                        }
-                    }
-                    _ => break,
-                }
-                embassy_time::Timer::after_micros(100).await;
-            }
-        };
+        let sampler = lv.watch(&phase, &input_at, &stop_at, status_level);
 
         let mut log = HeadLog::default();
         // Reads every line's next chunk (no timeout: a read cancelled half-way would
@@ -424,7 +378,6 @@ mod tests {
             embassy_futures::join::join4(source_run, head_sim, sampler, reader).await;
         drop(source);
         defmt::info!("head: {}", log);
-        defmt::info!("levels: {}", lv);
 
         assert!(
             !underrun.get(),
@@ -464,27 +417,7 @@ mod tests {
         );
         assert!(log.park >= 1000, "{} park periods", log.park);
         // The laser gate and the STATUS towards the controller.
-        assert_eq!(lv.gate_before, 0, "gate on before the input");
-        assert_eq!(lv.status_before, 0, "STATUS OK before the input");
-        let on = lv.gate_on_after_us.expect("gate never on");
-        assert!(on < 10_000, "gate on {} us after the input", on);
-        assert_eq!(lv.gate_drops, 0, "gate off while the input runs");
-        let ok = lv.status_ok_after_us.expect("STATUS never OK");
-        assert!(ok < 200_000, "STATUS OK {} us after the input", ok);
-        assert_eq!(lv.status_drops, 0, "STATUS fault while the input runs");
-        assert!(
-            lv.samples_after > 1000,
-            "{} samples after the input",
-            lv.samples_after
-        );
-        assert_eq!(
-            lv.gate_late, 0,
-            "gate still on 6 ms after the input stopped"
-        );
-        assert_eq!(
-            lv.status_late, 0,
-            "STATUS still OK 250 ms after the input stopped"
-        );
+        lv.check();
         assert!(!gate_high(), "gate on at the end");
     }
 }
