@@ -16,8 +16,8 @@ use shared::bridge::{Config, StatusForm};
 use shared::hans::rx::Mode as HansMode;
 
 use crate::board::{
-    HansInRes, HansOutRes, HansStatusInRes, HansStatusOutRes, Resources, WaveRes, Xy2InRes,
-    Xy3InRes,
+    BackRes, HansInRes, HansOutRes, HansStatusInRes, HansStatusOutRes, Resources, WaveRes,
+    Xy2InRes, Xy3InRes,
 };
 use crate::config::{Controller, Head, Roles};
 use crate::drivers::backchannel;
@@ -135,30 +135,7 @@ pub fn spawn_bridge(spawner: Spawner, ex: Executors, config: Config, r: Resource
             r.back.de,
             r.xy3_in.sck_buffer_oe,
         ),
-        Controller::Xy3 => {
-            // The lines the controller drives that the bridge uses
-            // (`controller.xy3.lines`; Z only with `z.source = "input"`, U / W only
-            // for an XY3-100 head): an unconnected line would fail every period.
-            let lines = config.xy3_input_lines();
-            defmt::info!("xy3 in: lines {}", lines);
-            ex.line.spawn(line::xy3_in(r.xy3_in, lines).unwrap());
-            let b = r.back;
-            let back_config = backchannel::config(config.controller.xy3.back_rate.baud());
-            match Uart::new_with_de(
-                b.uart,
-                b.rx,
-                b.tx,
-                b.de,
-                b.tx_dma,
-                b.rx_dma,
-                tasks::Irqs,
-                back_config,
-            ) {
-                Ok(u) => spawner
-                    .spawn(status::back_to_controller(backchannel::controller_tx(u)).unwrap()),
-                Err(_) => defmt::error!("backchannel UART (controller) configuration rejected"),
-            }
-        }
+        Controller::Xy3 => controller_xy3(spawner, ex, &config, r.xy3_in, r.back),
         Controller::Hans => {
             if let Some(fs) = fs_ctrl {
                 controller_hans(ex, &config, r.xy3_in, r.hans_in, fs);
@@ -254,6 +231,40 @@ pub fn controller_xy2(
     // an XY3-100 controller stays off (OE# high, README wiring table): left in its
     // reset state the pin floats, and so would the buffer's enable.
     core::mem::forget(Output::new(sck_buffer_oe, Level::High, Speed::Low));
+}
+
+/// The XY3-100 controller side: the input line task `line::xy3_in` (the lines the
+/// controller drives that the bridge uses, in sessions) on the line executor, and
+/// the backchannel towards the controller (UART7 with hardware DE on the pair-6
+/// driver, at `controller.xy3.back_rate`) in thread mode.
+pub fn controller_xy3(
+    spawner: Spawner,
+    ex: Executors,
+    config: &Config,
+    xy3_in: Xy3InRes,
+    back: BackRes,
+) {
+    // The lines the controller drives that the bridge uses (`controller.xy3.lines`;
+    // Z only with `z.source = "input"`, U / W only for an XY3-100 head): an
+    // unconnected line would fail every period.
+    let lines = config.xy3_input_lines();
+    defmt::info!("xy3 in: lines {}", lines);
+    ex.line.spawn(line::xy3_in(xy3_in, lines).unwrap());
+    let b = back;
+    let back_config = backchannel::config(config.controller.xy3.back_rate.baud());
+    match Uart::new_with_de(
+        b.uart,
+        b.rx,
+        b.tx,
+        b.de,
+        b.tx_dma,
+        b.rx_dma,
+        tasks::Irqs,
+        back_config,
+    ) {
+        Ok(u) => spawner.spawn(status::back_to_controller(backchannel::controller_tx(u)).unwrap()),
+        Err(_) => defmt::error!("backchannel UART (controller) configuration rejected"),
+    }
 }
 
 /// The HANS-100 controller input: `hans_in` (the channels `controller.hans.decode`

@@ -3,9 +3,8 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::xy2_source::{
-        e2e_positions, frame_of_x, Levels, Xy2Source, SRC_FRAMES, SRC_PINS, SRC_TPF,
-    };
+    use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
+    use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
     use embassy_stm32::peripherals::PA4;
     use embassy_stm32::{pac, Peri};
     use embassy_time::{with_timeout, Duration, Instant};
@@ -89,7 +88,7 @@ mod tests {
     /// functions spawn the supervisor (watchdog, laser gate), LEDs and statistics,
     /// `line::xy2_in` and the STATUS level out, and for the head `bridge_hans_out`,
     /// `line::hans_status_in` and `status::hans_status`, as `app::spawn_bridge`
-    /// does for this pairing. [`Xy2Source`] plays 30 000 frames into the
+    /// does for this pairing. [`BsrrSource`] plays 30 000 frames into the
     /// controller-side XY2 input, every 150th with its X parity bit flipped. SAI2
     /// block B (HANS STATUS out, free here) plays the head's STATUS on PG10: eight
     /// healthy status frames (code 65, no alarm; code 15, no Z alarm), which the
@@ -167,10 +166,11 @@ mod tests {
         // The controller side's source, idle, on the head backchannel's TX stream
         // (DMA1 S6; no head backchannel in this pairing).
         let tx = Xy2Tx::new(SRC_PINS, SRC_TPF, link).unwrap();
-        let mut source = Xy2Source::start(
+        let mut source = BsrrSource::start(
             r.head_back.tx_dma,
             dma_ring!(".sram1", u32, 2 * SRC_FRAMES * SRC_TPF),
             tx.idle_word(),
+            SRC_TICK_HZ,
         );
         // The head's STATUS: SAI2 B on PG10 (SPI1's NSS pin, unused here).
         let healthy = status_frame(

@@ -2,9 +2,8 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::xy2_source::{
-        e2e_positions, frame_of_x, Levels, Xy2Source, SRC_FRAMES, SRC_PINS, SRC_TPF,
-    };
+    use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
+    use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
     use embassy_stm32::pac;
     use embassy_stm32::usart::UartTx;
     use embassy_time::Duration;
@@ -59,7 +58,7 @@ mod tests {
     /// functions spawn the supervisor (watchdog, laser gate), LEDs and statistics,
     /// `line::xy2_in` and `bridge_wave_out` in the line executor, the STATUS level
     /// and head backchannel tasks, as `app::spawn_bridge` does for this pairing.
-    /// [`Xy2Source`] plays 30 000 frames from `shared::xy2::tx` into the
+    /// [`BsrrSource`] plays 30 000 frames from `shared::xy2::tx` into the
     /// controller-side XY2 input (frame 12 345 with its X parity bit flipped); the
     /// head's XY3-100 output is received by the controller-side XY3 SPI slaves (X, Y,
     /// Z) and SYNC marks, which this pairing leaves free, and decoded by
@@ -149,10 +148,11 @@ mod tests {
         let hb = r.head_back;
         // The controller side's source, idle.
         let tx = Xy2Tx::new(SRC_PINS, SRC_TPF, link).unwrap();
-        let mut source = Xy2Source::start(
+        let mut source = BsrrSource::start(
             hb.tx_dma,
             dma_ring!(".sram1", u32, 2 * SRC_FRAMES * SRC_TPF),
             tx.idle_word(),
+            SRC_TICK_HZ,
         );
         // The head's backchannel.
         let mut head_back = UartTx::new(
