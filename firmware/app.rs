@@ -1,7 +1,7 @@
 //! Start-up of the bridge: the two interrupt executors and the spawning of every task
 //! the baked roles need (README "Tasks and executors"). The firmware binary
 //! (`firmware/main.rs`) calls [`Executors::start`], [`spawn_supervision`] and
-//! [`spawn_bridge`]; the hardware-in-the-loop tests (`firmware/hil/main.rs`) call
+//! [`spawn_bridge`]; the hardware-in-the-loop tests (`firmware/hil/e2e`) call
 //! the same functions, or the per-side ones below for the resources of one pairing,
 //! so the tasks they run are the firmware's, spawned the firmware's way.
 

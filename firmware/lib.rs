@@ -1,7 +1,7 @@
 //! The firmware: board bring-up, peripheral drivers, the tasks, their channels, the
 //! baked configuration and the start-up that spawns them ([`app`]). It is a library so
 //! that the firmware binary (`firmware/main.rs`, a thin spawner) and the
-//! hardware-in-the-loop test binary (`firmware/hil/main.rs`) run the same code, the
+//! hardware-in-the-loop test binary (`firmware/hil/`) run the same code, the
 //! bridge tasks included.
 #![no_std]
 
