@@ -244,33 +244,45 @@ impl Bridge {
                 Some(self.output(Some(frame), head_back_rate))
             }
             Timing::FreeRunning => {
-                // The older frame's positions are superseded; its one-off command /
-                // laser control rides on the newer frame if that has none, else it is
-                // lost (counted).
-                let old = self.pending.as_ref().map(|o| (o.command, o.laser));
-                let next = self.pending.insert(ForwardFrame::default());
-                let t = self.tr.translate(f, next);
-                if let Some((command, laser)) = old {
-                    bump(&mut self.counters.skipped);
-                    if command.is_some() {
-                        if next.command.is_none() {
-                            next.command = command;
-                        } else {
-                            bump(&mut self.counters.commands_not_carried);
-                        }
-                    }
-                    if laser.is_some() {
-                        if next.laser.is_none() {
-                            next.laser = laser;
-                        } else {
-                            bump(&mut self.counters.laser_not_carried);
-                        }
-                    }
+                if self.pending.is_some() {
+                    self.supersede(f);
                 }
+                // The slot is free in the steady state (one input frame per output
+                // slot); after `supersede` it holds the older frame's one-offs,
+                // which the translation replaces where the newer frame has its own.
+                let next = self.pending.get_or_insert_with(ForwardFrame::default);
+                let t = self.tr.translate(f, next);
                 self.count_translation(&t);
                 None
             }
         }
+    }
+
+    /// Free-running, a frame `f` arrived before the pending one was sent (input
+    /// faster than output): the older frame's positions are superseded; its
+    /// one-off command / laser control rides on the newer frame if that has none,
+    /// else it is lost (counted). Leaves only those one-offs in the pending slot,
+    /// for the translation of `f` to keep or replace. Out of line: the steady state
+    /// never takes it, and holding the older one-offs across the translation would
+    /// cost that state registers.
+    #[inline(never)]
+    fn supersede(&mut self, f: &ForwardFrame) {
+        let Some(old) = self.pending.take() else {
+            return;
+        };
+        bump(&mut self.counters.skipped);
+        let (command_own, laser_own) = self.tr.carries_own(f);
+        if old.command.is_some() && command_own {
+            bump(&mut self.counters.commands_not_carried);
+        }
+        if old.laser.is_some() && laser_own {
+            bump(&mut self.counters.laser_not_carried);
+        }
+        self.pending = Some(ForwardFrame {
+            command: old.command,
+            laser: old.laser,
+            ..ForwardFrame::default()
+        });
     }
 
     /// Counts what a translation dropped and applies a controller backchannel-rate

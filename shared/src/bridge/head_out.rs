@@ -13,7 +13,7 @@
 //! # Cost
 //! The wire words are computed here, straight from each position's MSB-aligned
 //! value, and the transmitter only fills the slot (`write_words` /
-//! `encode_words`): rounding to the field is one saturating add, and the protocol
+//! `encode_words_for`): rounding to the field is one saturating add, and the protocol
 //! modules' position-word functions ([`xy2::position_word`],
 //! [`xy3::frame::position_bits_word`], the one place each layout is written down)
 //! turn the value into the word: the XY2-100 parity bit is the value's parity (a
@@ -22,9 +22,12 @@
 //! its own copy of the word code, so the header and parity constants fold instead
 //! of being looked up per frame; the
 //! checked routes through the frame enums (`xy2::encode`, `xy3::encode`) are only
-//! taken for commands. The tests compare every output with those routes. About
-//! 210 instructions for one slot on each of the worst path's heads together
-//! (XY3-100 32-bit on X Y Z, XY2-100 with Z; 320 before), fills not included
+//! taken for commands. XY3-100 heads dispatch once on frame size and "U or W
+//! driven" and call the transmitter's fill of that layout directly, so a head
+//! without U and W neither asks for them nor passes through the transmitter's own
+//! dispatch. The tests compare every output with those routes. About 198
+//! instructions for one slot on each of the worst path's heads together (XY3-100
+//! 32-bit on X Y Z, XY2-100 with Z; 320, then 210 before), fills not included
 //! (`cargo xtask profile worst`). The fills stay out of line (in ITCM on the
 //! board, "Memory placement" in the README): inlining them here would save ~20.
 
@@ -86,9 +89,7 @@ impl HeadTx {
             (HeadTx::Xy2 { tx, mode, z }, Some(f)) => {
                 xy2_words(tx, f, *mode, *z).is_some_and(|w| tx.write_words(slot, w).is_ok())
             }
-            (HeadTx::Xy3 { tx, lines }, Some(f)) => {
-                xy3_words(tx, f, *lines).is_some_and(|words| tx.encode_words(words, slot).is_ok())
-            }
+            (HeadTx::Xy3 { tx, lines }, Some(f)) => xy3_write(tx, f, *lines, slot),
             (_, None) => false,
         };
         if !written {
@@ -170,37 +171,55 @@ fn xy2_slot<const BITS: u32, const WHOLE: bool>(
     Some([x, pos(Axis::Y)?, z])
 }
 
-/// The XY3-100 wire words of one slot (0 for lines not driven), or `None` if `f`
+/// Writes the XY3-100 slot of `f` into `slot`; false (nothing useful written) if `f`
 /// lacks a frame for one of the driven lines, carries a command XY3-100 cannot send,
-/// or the transmitter's pins for Z, U and W are not exactly those of `lines` (which
-/// [`xy3::tx::Transmitter::encode`] would refuse too). Axes `f` carries for
-/// lines the head does not drive are left out.
+/// the transmitter's pins for Z, U and W are not exactly those of `lines` (which
+/// [`xy3::tx::Transmitter::encode`] would refuse too), or `slot` is too short. Axes
+/// `f` carries for lines the head does not drive are left out.
 ///
 /// The words are built at the transmitter's size here, once, so the transmitter
-/// only fills the slot ([`xy3::tx::Transmitter::encode_words`]): this is exactly
+/// only fills the slot ([`xy3::tx::Transmitter::encode_words_for`]): this is exactly
 /// what [`xy3::tx::Transmitter::encode`] would write for the frames
 /// `position_frame` / `command_frame` give, without checking again what this
 /// function guarantees (frame size, a frame exactly for every driven line).
 #[inline(always)]
-fn xy3_words(tx: &xy3::tx::Transmitter, f: &ForwardFrame, lines: Lines) -> Option<[u32; 5]> {
+fn xy3_write(tx: &xy3::tx::Transmitter, f: &ForwardFrame, lines: Lines, slot: &mut [u32]) -> bool {
     // X and Y always have pins (the transmitter requires them) and always go out;
     // Z, U and W must be driven exactly as `lines` says.
     const OPTIONAL: u8 = 0b11100;
     if (tx.driven() ^ lines.bits()) & OPTIONAL != 0 {
-        return None;
+        return false;
     }
-    // One copy per frame size, so the layout constants fold.
-    match tx.size() {
-        xy3::FrameSize::Bits24 => xy3_slot::<false>(f, lines),
-        xy3::FrameSize::Bits32 => xy3_slot::<true>(f, lines),
+    // One copy per frame size, so the layout constants fold, and per "U or W
+    // driven" (then, and only then, `lines` has U or W, as just checked), so the
+    // common X Y Z head neither asks for U and W nor fills their lines.
+    #[inline(always)]
+    fn write<const BITS32: bool, const WIDE: bool>(
+        tx: &xy3::tx::Transmitter,
+        f: &ForwardFrame,
+        lines: Lines,
+        slot: &mut [u32],
+    ) -> bool {
+        xy3_slot::<BITS32, WIDE>(f, lines)
+            .is_some_and(|words| tx.encode_words_for::<BITS32, WIDE>(words, slot).is_ok())
+    }
+    match (tx.size(), tx.wide()) {
+        (xy3::FrameSize::Bits24, false) => write::<false, false>(tx, f, lines, slot),
+        (xy3::FrameSize::Bits24, true) => write::<false, true>(tx, f, lines, slot),
+        (xy3::FrameSize::Bits32, false) => write::<true, false>(tx, f, lines, slot),
+        (xy3::FrameSize::Bits32, true) => write::<true, true>(tx, f, lines, slot),
     }
 }
 
-/// [`xy3_words`] for 32-bit frames if `BITS32`, else 24-bit ones. A position word
-/// is computed straight from the rounded value by
-/// [`xy3::frame::position_bits_word`] (XY3-100 §5.1 layout).
+/// The wire words of [`xy3_write`] (0 for lines not driven) for 32-bit frames if
+/// `BITS32`, else 24-bit ones, and U or W driven if `WIDE`. A position word is
+/// computed straight from the rounded value by [`xy3::frame::position_bits_word`]
+/// (XY3-100 §5.1 layout).
 #[inline(always)]
-fn xy3_slot<const BITS32: bool>(f: &ForwardFrame, lines: Lines) -> Option<[u32; 5]> {
+fn xy3_slot<const BITS32: bool, const WIDE: bool>(
+    f: &ForwardFrame,
+    lines: Lines,
+) -> Option<[u32; 5]> {
     let size = if BITS32 {
         xy3::FrameSize::Bits32
     } else {
@@ -231,13 +250,12 @@ fn xy3_slot<const BITS32: bool>(f: &ForwardFrame, lines: Lines) -> Option<[u32; 
     }?;
     // A driven line needs its frame: all-zero bits would be a dead line to the head.
     let other = |a: Axis| if lines.has(a) { pos(a) } else { Some(0) };
-    Some([
-        x,
-        pos(Axis::Y)?,
-        other(Axis::Z)?,
-        other(Axis::U)?,
-        other(Axis::W)?,
-    ])
+    let (u, w) = if WIDE {
+        (other(Axis::U)?, other(Axis::W)?)
+    } else {
+        (0, 0)
+    };
+    Some([x, pos(Axis::Y)?, other(Axis::Z)?, u, w])
 }
 
 #[cfg(test)]

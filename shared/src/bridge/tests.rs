@@ -917,6 +917,74 @@ fn hans_head_laser_is_switched_off_on_input_loss() {
     assert_eq!(b.tick(MS).frame.unwrap().laser, None);
 }
 
+/// The skip rules with laser control (HANS-100 head, laser forwarded) and with a
+/// newer command the head refuses: the older one-off rides on wherever the newer
+/// frame brings none the head takes; where it does, the older is lost and counted.
+#[test]
+fn free_running_skip_keeps_laser_and_refused_commands() {
+    let power = |p| LaserControl::Power {
+        power: p,
+        mo: true,
+        pa: true,
+        red_pointer: false,
+        reserved: 0,
+    };
+    let mut cfg = Config::default();
+    cfg.failsafe.recovery_frames = 1;
+    cfg.controller.protocol = Protocol::Hans;
+    cfg.head.protocol = Protocol::Hans;
+    cfg.laser.forward = true;
+    let mut b = Bridge::new(&cfg).unwrap();
+    let with = |x, laser, command| {
+        let mut f = xyz16(x, x, x);
+        f.laser = laser;
+        f.command = command;
+        f
+    };
+    // Older laser control, newer frame without: it rides on.
+    b.on_line_event(0, ev(with(1, Some(power(10)), None)));
+    b.on_line_event(1, ev(with(2, None, None)));
+    let f = b.tick(2).frame.unwrap();
+    assert_eq!(
+        (f.laser, f.axis(Axis::X).unwrap().to_raw(16)),
+        (Some(power(10)), 2)
+    );
+    assert_eq!(b.counters().laser_not_carried, 0);
+    // Both have laser control: the newer wins, the older is counted.
+    b.on_line_event(3, ev(with(3, Some(power(20)), None)));
+    b.on_line_event(4, ev(with(4, Some(power(30)), None)));
+    assert_eq!(b.tick(5).frame.unwrap().laser, Some(power(30)));
+    assert_eq!(b.counters().laser_not_carried, 1);
+    // A HANS-100 head takes no XY3-100 command: the newer one is dropped (counted),
+    // the older, refused too, was counted on its own arrival; nothing rides on.
+    let c = Command::Xy3(0x2_0001);
+    b.on_line_event(6, ev(with(5, None, Some(c))));
+    b.on_line_event(7, ev(with(6, None, Some(c))));
+    assert_eq!(b.tick(8).frame.unwrap().command, None);
+    assert_eq!(b.counters().commands_not_carried, 2);
+    assert_eq!(b.counters().skipped, 3);
+
+    // An XY3-100 head: an older command it takes rides on past a newer one it
+    // refuses (an XY2-100 command), which is counted as not carried.
+    let mut cfg = Config::default();
+    cfg.failsafe.recovery_frames = 1;
+    cfg.head.protocol = Protocol::Xy3;
+    let mut b = Bridge::new(&cfg).unwrap();
+    let refused = Command::Xy2Enhanced {
+        command: 1,
+        parameter: 2,
+    };
+    b.on_line_event(0, ev(with(1, None, Some(c))));
+    b.on_line_event(1, ev(with(2, None, Some(refused))));
+    let f = b.tick(2).frame.unwrap();
+    assert_eq!(
+        (f.command, f.axis(Axis::X).unwrap().to_raw(16)),
+        (Some(c), 2)
+    );
+    assert_eq!(b.counters().commands_not_carried, 1);
+    assert_eq!(b.counters().skipped, 1);
+}
+
 #[test]
 fn free_running_skip_keeps_one_offs() {
     let mut cfg = Config::default();

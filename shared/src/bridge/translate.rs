@@ -154,8 +154,19 @@ impl Translator {
         }
     }
 
-    /// Translates `input` into `out`, which must be empty (`ForwardFrame::default()`):
-    /// written in place because the caller keeps the result in its own slot.
+    /// Whether [`Translator::translate`] gives `input`'s own command and its own
+    /// laser control to the output (replacing any already there).
+    pub fn carries_own(&self, input: &ForwardFrame) -> (bool, bool) {
+        (
+            input.command.is_some_and(|c| self.carries(&c)),
+            input.laser.is_some() && self.laser_forward,
+        )
+    }
+
+    /// Translates `input` into `out`, whose axes must be empty: written in place
+    /// because the caller keeps the result in its own slot. A command or laser
+    /// control already in `out` stays unless `input` brings its own that the head
+    /// takes ([`Translator::carries_own`]).
     /// Inlined into the engine's frame path (its one caller per timing mode).
     #[inline(always)]
     pub fn translate(&self, input: &ForwardFrame, out: &mut ForwardFrame) -> Translated {
@@ -167,9 +178,14 @@ impl Translator {
             None => self.z_other,
         };
         if let Some((u_bits, w_bits)) = self.uw_bits {
-            // Only XY3-100 has U and W; they pass resized, without mapping.
-            *u = input.axis(Axis::U).map(|p| p.resized(u_bits));
-            *w = input.axis(Axis::W).map(|p| p.resized(w_bits));
+            // Only XY3-100 has U and W; they pass resized, without mapping. `out`'s
+            // axes are empty: an axis the input lacks is already `None`.
+            if let Some(p) = input.axis(Axis::U) {
+                *u = Some(p.resized(u_bits));
+            }
+            if let Some(p) = input.axis(Axis::W) {
+                *w = Some(p.resized(w_bits));
+            }
         }
         let mut t = Translated {
             command_dropped: false,

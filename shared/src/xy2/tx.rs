@@ -251,11 +251,13 @@ impl Transmitter {
     /// line: it is the same for every caller, while the frame checks inline.
     #[inline(never)]
     fn fill(&self, slot: &mut [u32], [x, y, z]: [u32; 3]) {
-        let (bits, tail) = slot.split_at_mut(FRAME_TICKS.min(slot.len()));
-        tail.fill(self.idle);
-        let Some(bits) = bits.first_chunk_mut::<FRAME_TICKS>() else {
+        let Some((bits, tail)) = slot.split_first_chunk_mut::<FRAME_TICKS>() else {
             return;
         };
+        // Often nothing (40-tick frames): skip the call of a zero-length fill.
+        if !tail.is_empty() {
+            tail.fill(self.idle);
+        }
         // MSB-aligned: bit 19, the first on the wire, in bit 31.
         let align = 32 - FRAME_BITS;
         let lines = [x << align, y << align, z << align];

@@ -46,12 +46,13 @@
 //! With U or W the five lines are merged six bit times at a time into 5-bit fields
 //! (a 64-entry spreading table), then per bit one field extract, one look-up and
 //! two stores. The loop is compiled once per frame size (fully unrolled) and per
-//! "U or W driven". No branches on the data. About 290 instructions per 32-bit
-//! frame period on X Y Z (260 for 24-bit frames; 320 / 285 with the one-bit loop)
-//! and 440 on all five lines on the Cortex-M7 (`cargo xtask qemu`), some 125 of
-//! them checking and encoding the frames ([`Transmitter::encode`]); the bridge's
-//! head encoder builds and encodes its frames itself and only fills
-//! ([`Transmitter::encode_words`]).
+//! "U or W driven", each copy out of line. No branches on the data. About 285
+//! instructions per 32-bit frame period on X Y Z (260 for 24-bit frames; 320 / 285
+//! with the one-bit loop) and 435 on all five lines on the Cortex-M7 (`cargo xtask
+//! qemu`), some 135 of them checking and encoding the frames
+//! ([`Transmitter::encode`]): the fill of a 32-bit X Y Z period is 149. The
+//! bridge's head encoder builds and encodes its frames itself and goes straight to
+//! the fill of its layout (`Transmitter::encode_words_for`).
 
 use core::fmt;
 
@@ -315,9 +316,35 @@ impl Transmitter {
         Ok(())
     }
 
-    /// [`Self::fill`] for the configured size and lines. Out of line: the same for
-    /// every caller, while the frame checks inline.
-    #[inline(never)]
+    /// Whether U or W is driven (the bridge's head encoder picks its
+    /// [`Self::encode_words_for`] copy by it).
+    pub(crate) const fn wide(&self) -> bool {
+        self.wide
+    }
+
+    /// [`Self::encode_words`] for a caller that already knows the frame size
+    /// (`BITS32`: [`FrameSize::Bits32`]) and whether U or W is driven (`WIDE`,
+    /// [`Self::wide`]), so it takes the one fill of that layout without asking the
+    /// transmitter again. Both must be the transmitter's own: the bridge's head
+    /// encoder dispatches on them once per slot, and its tests compare every size and
+    /// line set with the checked [`Self::encode`].
+    #[inline(always)]
+    pub(crate) fn encode_words_for<const BITS32: bool, const WIDE: bool>(
+        &self,
+        words: [u32; 5],
+        out: &mut [u32],
+    ) -> Result<(), TxError> {
+        let out = self.slot(out)?;
+        if BITS32 {
+            self.fill::<32, 16, 65, WIDE>(words, out);
+        } else {
+            self.fill::<24, 12, 49, WIDE>(words, out);
+        }
+        Ok(())
+    }
+
+    /// [`Self::fill`] for the configured size and lines.
+    #[inline(always)]
     fn fill_words(&self, words: [u32; 5], out: &mut [u32]) {
         // One copy of the bit loop per frame size, so it unrolls with constant shifts,
         // and per "U or W driven", so the common X Y Z head skips two idle lines.
@@ -349,8 +376,9 @@ impl Transmitter {
     /// `2 * BITS + 2` words; `PAIRS` is `BITS / 2` and `WORDS` `2 * BITS + 1`, the
     /// bit words and SYNC's rise). Without `WIDE` the U and W words are 0 (not
     /// driven) and the shared three-line loop (`xy2::tx::lanes`) does X, Y and Z,
-    /// two bit times per look-up.
-    #[inline(always)]
+    /// two bit times per look-up. Out of line, one copy per layout: the same for
+    /// every caller, while the frame checks inline.
+    #[inline(never)]
     fn fill<const BITS: usize, const PAIRS: usize, const WORDS: usize, const WIDE: bool>(
         &self,
         words: [u32; 5],
