@@ -156,6 +156,12 @@ fn published(events: &[RxEvent]) -> Vec<Frame> {
 /// Matches `got` against `sent` in order: returns (frames after the first `skip`
 /// that were not published, published frames that were never sent at that point).
 fn score(sent: &[Frame], got: &[Frame], skip: usize) -> (usize, usize) {
+    let (lost, invented) = scored(sent, got, skip);
+    (lost.len(), invented)
+}
+
+/// Like [`score`], with the indices of the frames lost.
+fn scored(sent: &[Frame], got: &[Frame], skip: usize) -> (Vec<usize>, usize) {
     let mut i = 0;
     let mut matched = Vec::new();
     let mut invented = 0;
@@ -173,7 +179,7 @@ fn score(sent: &[Frame], got: &[Frame], skip: usize) -> (usize, usize) {
     let lost: Vec<usize> = (skip..sent.len() - 1)
         .filter(|k| !matched.contains(k))
         .collect();
-    (lost.len(), invented)
+    (lost, invented)
 }
 
 /// Like [`score`], failing on any published frame that was not sent.
@@ -372,6 +378,8 @@ struct Lock {
     wrong: usize,
     /// Index of the first published frame (the frames the acquisition took).
     first: usize,
+    /// The frames lost after [`LOCK_FRAMES`] (indices).
+    which: Vec<usize>,
 }
 
 /// One lock of normal mode on one clean channel over `n` frames (`seed` chooses
@@ -390,7 +398,8 @@ fn run_lock(fs: f64, offset_pct: f64, jitter: f64, n: usize, seed: u64) -> Lock 
     let words = vec![words[0].clone()];
     let (events, _) = receive(&words, fs, Mode::Normal { channel: 1 }, seed);
     let got = published(&events);
-    let (lost, wrong) = score(&frames, &got, LOCK_FRAMES);
+    let (which, wrong) = scored(&frames, &got, LOCK_FRAMES);
+    let lost = which.len();
     let first = got
         .iter()
         .find_map(|f| frames.iter().position(|s| s == f))
@@ -401,6 +410,7 @@ fn run_lock(fs: f64, offset_pct: f64, jitter: f64, n: usize, seed: u64) -> Lock 
         late,
         wrong,
         first,
+        which,
     }
 }
 
@@ -425,6 +435,10 @@ enum Must {
 #[test]
 fn limits_over_many_locks() {
     let locks = std::env::var("HANS_LOCKS").map_or(64, |v| v.parse::<u64>().unwrap_or(64));
+    // `HANS_JITTER=0.25,0.2` runs the points with those jitters only (tracing).
+    let only: Option<Vec<f64>> = std::env::var("HANS_JITTER")
+        .ok()
+        .map(|v| v.split(',').filter_map(|j| j.trim().parse().ok()).collect());
     const N: usize = 80;
     let scored = N - LOCK_FRAMES - 1;
     println!(
@@ -461,8 +475,14 @@ fn limits_over_many_locks() {
     ];
     // Loss requirements that failed, asserted after the whole table is printed.
     let mut failed = Vec::new();
+    // Every lock that lost frames at a point that should lose none, printed
+    // after the table (with `HANS_LOCKS` above 64).
+    let mut losers = Vec::new();
     for fs in [37.5e6, 40e6, 50e6] {
         for (p, &(jitter, offset, must)) in points.iter().enumerate() {
+            if !only.as_ref().is_none_or(|j| j.contains(&jitter)) {
+                continue;
+            }
             let (mut losing, mut late_locks, mut lost_all, mut worst) = (0, 0, 0, 0);
             let (mut first_all, mut first_max) = (0, 0);
             for lock in 0..locks {
@@ -475,9 +495,13 @@ fn limits_over_many_locks() {
                     late,
                     wrong,
                     first,
+                    which,
                 } = run_lock(fs, offset, jitter, N, seed);
                 let at = format!("{fs} Hz, ±{jitter} bit, {offset:.2} %, seed {seed}");
                 assert_eq!(wrong, 0, "published a frame that was not sent: {at}");
+                if lost > 0 && must == Must::LoseNothing {
+                    losers.push(format!("{at}: first published {first}, lost {which:?}"));
+                }
                 if must == Must::LoseNothing && lost > 0 {
                     failed.push(format!("lost {lost} ({late} after publishing): {at}"));
                 }
@@ -504,7 +528,52 @@ fn limits_over_many_locks() {
         }
     }
     println!("(no wrong frame at any point)");
+    for l in &losers {
+        println!("losing lock: {l}");
+    }
     assert!(failed.is_empty(), "{failed:#?}");
+}
+
+/// Locks whose hunt left the line a few tenths of a sample and ~0.2 sample a
+/// frame off (traced at 640 locks a point, docs/engineering-log.md
+/// 2026-12-03): none of their first frames verified, the young fit got no
+/// mid-pair edge, and after six failures the lock was dropped and the hunt
+/// started over (first frame published 17..33, where a lock publishes from 8).
+/// A failed unsettled frame that reads right an eighth or a quarter of a bit
+/// over now corrects the fit (`shared::hans::rx::HansRx::reread`): each
+/// publishes from frame 10 at the latest and loses nothing, and publishes
+/// nothing that was not sent.
+#[test]
+fn an_off_young_lock_is_put_back() {
+    // (fs, offset: None for the many-locks test's random one, seed, first
+    // frame published before)
+    let locks = [
+        (37.5e6, Some(0.0), 10_318, 17),
+        (37.5e6, Some(0.0), 10_402, 33),
+        (37.5e6, Some(0.0), 10_425, 17),
+        (37.5e6, Some(0.0), 10_596, 19),
+        (37.5e6, None, 20_220, 17),
+        (37.5e6, None, 20_279, 18),
+        (37.5e6, None, 20_289, 17),
+        (37.5e6, None, 20_327, 18),
+        (40e6, Some(0.0), 10_201, 17),
+        (40e6, Some(0.0), 10_214, 17),
+        (40e6, None, 20_088, 17),
+        (50e6, None, 20_279, 18),
+    ];
+    for (fs, offset, seed, before) in locks {
+        let offset = offset
+            .unwrap_or_else(|| ChaCha8Rng::seed_from_u64(seed ^ 0xA5A5).random_range(-1.0..=1.0));
+        let l = run_lock(fs, offset, 0.25, 80, seed);
+        let at = format!("{fs} Hz, {offset:.2} %, seed {seed} (first published {before} before)");
+        assert_eq!(l.wrong, 0, "published a frame that was not sent: {at}");
+        assert!(
+            l.first <= 10 && l.lost == 0,
+            "{at}: first published {}, lost {:?}",
+            l.first,
+            l.which
+        );
+    }
 }
 
 /// Feeds `words` as the firmware does (`tasks/hans_in.rs`): 512-word halves in
