@@ -8,13 +8,20 @@ mod hans_to_xy2;
 #[cfg(any(
     bridge_pairing = "xy2_to_xy3",
     bridge_pairing = "xy2_to_hans",
-    bridge_pairing = "xy3_to_xy2"
+    bridge_pairing = "xy3_to_xy2",
+    bridge_pairing = "xy2_to_xy2"
 ))]
 mod source;
-#[cfg(any(bridge_pairing = "xy2_to_xy3", bridge_pairing = "xy2_to_hans"))]
+#[cfg(any(
+    bridge_pairing = "xy2_to_xy3",
+    bridge_pairing = "xy2_to_hans",
+    bridge_pairing = "xy2_to_xy2"
+))]
 mod xy2_source;
 #[cfg(bridge_pairing = "xy2_to_hans")]
 mod xy2_to_hans;
+#[cfg(bridge_pairing = "xy2_to_xy2")]
+mod xy2_to_xy2;
 #[cfg(bridge_pairing = "xy2_to_xy3")]
 mod xy2_to_xy3;
 #[cfg(bridge_pairing = "xy3_to_xy2")]

@@ -1,14 +1,17 @@
 //! The XY2-100 controller of the end-to-end tests ([`super::source::BsrrSource`]
 //! with `shared::xy2::tx` words), and the watch on the laser gate and the STATUS
-//! level towards that controller.
+//! level towards that controller (pairings with the level form).
 
-use core::cell::Cell;
+#[cfg(any(bridge_pairing = "xy2_to_xy3", bridge_pairing = "xy2_to_hans"))]
+use {
+    core::cell::Cell,
+    embassy_stm32::pac,
+    embassy_time::{Duration, Instant},
+    shared::xy2::{Health, StatusLevel},
+    xy_bridge::board,
+};
 
-use embassy_stm32::pac;
-use embassy_time::{Duration, Instant};
 use shared::xy2;
-use shared::xy2::{Health, StatusLevel};
-use xy_bridge::board;
 
 /// Ticks per frame and tick rate of the XY2-100 source: 100 kHz frames at a 2 MHz
 /// clock, as a controller sends them.
@@ -29,7 +32,8 @@ pub(super) const SRC_PINS: xy2::tx::OutPinMap = xy2::tx::OutPinMap {
 
 /// The laser gate (PF13 pad) and the XY2-100 STATUS level towards the controller
 /// (PA0), sampled every 100 us through an end-to-end run: violations counted per
-/// phase.
+/// phase. (Not for a STATUS word: the XY2-100 word pairing checks the words.)
+#[cfg(any(bridge_pairing = "xy2_to_xy3", bridge_pairing = "xy2_to_hans"))]
 #[derive(Default, Debug, defmt::Format)]
 pub(super) struct Levels {
     gate_before: u32,
@@ -43,6 +47,7 @@ pub(super) struct Levels {
     samples_after: u32,
 }
 
+#[cfg(any(bridge_pairing = "xy2_to_xy3", bridge_pairing = "xy2_to_hans"))]
 impl Levels {
     /// Samples until `phase` reaches 3. Phases, set by the run's source: 0 before
     /// the input, 1 from `input_at` while frames are written, 2 once the last one
