@@ -49,17 +49,19 @@ mod tests {
     /// The head's status word from 100 ms into the input (an alarm) to 200 ms.
     const ALARM_FROM_MS: u64 = 100;
     const ALARM_TO_MS: u64 = 200;
-    /// DMA2 stream of the test head's STATUS player (DMA2 S3 = `hans_out`'s, free
-    /// here) and the length of its ring: two status frames (words of a frame: one
-    /// per head CLK falling edge).
-    const HEAD_STREAM: usize = 3;
+    /// DMA1 stream of the test head's STATUS player (DMA1 S5 = the head
+    /// backchannel's RX, free here; DMA1 rather than DMA2, whose streams already
+    /// serve ~12 M requests/s of the firmware's, so its request waits less) and the
+    /// length of its ring: two status frames (words of a frame: one per head CLK
+    /// falling edge).
+    const HEAD_STREAM: usize = 5;
     const HEAD_RING: usize = 40;
     /// The test head's STATUS pin: PE5 (port E, beside the source's pins).
     const HEAD_STATUS_PIN: u32 = 5;
 
     /// A test-only XY2-100 head's STATUS output: TIM3 captures the head's CLK
     /// falling edges on CH1 (PC6, AF2; TIM3 only clocks HANS-100 SPIs, free here),
-    /// and each capture requests one DMA2 stream 3 transfer (DMAMUX request
+    /// and each capture requests one DMA1 stream 5 transfer (DMAMUX request
     /// TIM3_CH1) of the next word of a circular ring into GPIOE's BSRR, setting or
     /// resetting PE5 (RM0433 "General-purpose timers", input capture mode and
     /// TIMx_DIER.CC1DE). So bit k of a status frame goes out on the falling edge of
@@ -79,7 +81,7 @@ mod tests {
         fn start(
             tim: Peri<'static, peripherals::TIM3>,
             clk: Peri<'static, peripherals::PC6>,
-            dma: Peri<'static, peripherals::DMA2_CH3>,
+            dma: Peri<'static, peripherals::DMA1_CH5>,
             slot: &'static mut Option<dma::Channel<'static>>,
             frame: u32,
         ) -> Self {
@@ -148,7 +150,7 @@ mod tests {
         /// not run (the ring unchanged or half changed).
         fn set(&mut self, frame: u32) -> bool {
             let words = frame_words(frame);
-            let dma = pac::DMA2.st(HEAD_STREAM);
+            let dma = pac::DMA1.st(HEAD_STREAM);
             // The index of the next word the DMA plays.
             let pos = || HEAD_RING - dma.ndtr().read().ndt() as usize % HEAD_RING;
             cortex_m::interrupt::free(|_| {
@@ -365,7 +367,8 @@ mod tests {
         let r = board.res;
 
         // The controller side's source, idle, on the head backchannel's TX stream
-        // (DMA1 S6; no backchannel in this pairing).
+        // (DMA1 S6; no backchannel in this pairing, its RX stream plays the head's
+        // STATUS below).
         let tx = Xy2Tx::new(SRC_PINS, SRC_TPF, link).unwrap();
         let mut source = BsrrSource::start(
             r.head_back.tx_dma,
@@ -482,7 +485,7 @@ mod tests {
         let mut head_status = HeadStatus::start(
             r.fs.tim,
             r.fs.ctrl,
-            r.hans_out.dma,
+            r.head_back.rx_dma,
             head_slot,
             head_ok.to_frame(&head_link),
         );
