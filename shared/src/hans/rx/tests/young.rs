@@ -124,3 +124,38 @@ fn young_fit_precision() {
         assert!(rms(&rate) < 6e-4, "{hz} Hz: rate {}", rms(&rate));
     }
 }
+
+/// A young lock that has not settled does not check its frames' tails
+/// (`HansRx::confirmed`), so it has measured none: its timing must hold no tail
+/// deviation, or its dense fit takes 8 tail points at a deviation never
+/// measured (`Timing::learn`: `Points::tail` of the frame, issue 4). On ±25 %
+/// jittered lines at 3x with rate offsets, every change of the timing of an
+/// unsettled lock is checked, and the dense fit must have learned frames before
+/// the lock settled (else the check would test nothing).
+#[test]
+fn a_young_lock_learns_no_tail_it_did_not_measure() {
+    let mut dense_learned = 0;
+    for (seed, offset) in (1..=12u32).zip([-0.01, 0.0, 0.01].into_iter().cycle()) {
+        let ratio = 3.0 / (1.0 + offset);
+        let s = Stream::new(40, seed, ratio, 0.1 + f64::from(seed) * 0.07, 0.25);
+        let mut rx = HansRx::new(37_500_000, Mode::Normal { channel: 1 }).unwrap();
+        let mut last = None;
+        for part in s.words.chunks(4) {
+            rx.push(&[part; 5], &mut |_| {});
+            let t = rx.timing;
+            if !rx.locked || t.settled() {
+                last = None;
+                continue;
+            }
+            assert_eq!(t.tail, None, "seed {seed}: {t:?}");
+            let points = t.fit_points();
+            if let (Some(before), Some(now)) = (last, points) {
+                if before >= timing::DENSE && now > before + 1 {
+                    dense_learned += 1;
+                }
+            }
+            last = points;
+        }
+    }
+    assert!(dense_learned >= 24, "{dense_learned}");
+}
