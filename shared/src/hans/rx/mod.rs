@@ -746,13 +746,9 @@ impl HansRx {
         // (`looked_again`).
         let mut confirmed = 0u8;
         // The reference's own tail deviation, when it confirmed the frame itself:
-        // the settled timing's phase measurement (`Timing::advance`), and a dense
-        // young fit's tail points (`Timing::learn`). Only a tail that was
-        // measured: an unsettled lock's confirmation checks no tail (its `sum`
-        // is 0), and taking that 0 gave the young fit 8 points of no deviation
-        // that no edge showed (issue 4).
+        // the settled timing's phase measurement (`Timing::advance`).
         let measured = self.confirmed(reference, start, ref_delay, ratio, ref_pattern);
-        self.timing.tail = measured.tail.and(measured.sum);
+        self.timing.tail = measured.sum;
         if measured.sum.is_some()
             || bits(same & !(1 << reference)).any(|n| {
                 self.confirmed(n, start, delay(n), ratio, ref_pattern)
@@ -1484,10 +1480,8 @@ impl HansRx {
 struct Checked {
     /// The frame is confirmed, short-excursion check included: its tail's summed
     /// deviation ([`confirm::Tail::sum`]; 0 before the lock has settled, when the
-    /// tail is not measured: then only the confirmation, not a measurement, and
-    /// not handed to the timing), the phase measurement `Timing::advance` blends
-    /// in. `None` when a start edge or the tail failed, or the tail is an
-    /// excursion.
+    /// tail is not measured), the phase measurement `Timing::advance` blends in.
+    /// `None` when a start edge or the tail failed, or the tail is an excursion.
     sum: Option<i32>,
     /// A settled lock's tail that passed the bounds of [`confirm::tail`],
     /// whether or not [`confirm::excursion`] rejected it: its far and off

@@ -127,12 +127,10 @@ pub struct Timing {
     stage: Stage,
     /// The summed deviation of the current frame's last
     /// [`super::confirm::TAIL_PAIRS`] mid-pair edges from this timing, when the
-    /// reference confirmed it on its own ([`super::confirm::tail`]; `None`
-    /// before the lock has settled, whose tails are not checked and so not
-    /// measured): read by the next [`Timing::advance`] as a phase
+    /// reference confirmed it on its own ([`super::confirm::tail`]; 0 before the
+    /// lock has settled): read by the next [`Timing::advance`] as a phase
     /// measurement, unless the receiver clears it (the frame was timed on a
-    /// median of other channels' edges), and by a dense young fit as the
-    /// tail's points ([`Timing::learn`]). Every decoded frame sets it before its
+    /// median of other channels' edges). Every decoded frame sets it before its
     /// advance; a lock and a coast clear it.
     pub(super) tail: Option<i32>,
     /// The current frame was re-read at a rounding step ([`Timing::rephase`]):
