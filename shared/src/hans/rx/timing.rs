@@ -493,6 +493,15 @@ impl Timing {
         matches!(self.stage, Stage::Recentre { owed: RECENTRE, .. })
     }
 
+    /// Points in a young (or re-centring) lock's fit; `None` once settled.
+    #[cfg(test)]
+    pub(super) fn fit_points(&self) -> Option<i64> {
+        match &self.stage {
+            Stage::Young { fit, .. } | Stage::Recentre { fit, .. } => Some(fit.points()),
+            Stage::Settled => None,
+        }
+    }
+
     /// True once the lock has measured [`SETTLED`] start edges.
     pub fn settled(&self) -> bool {
         match self.stage {
