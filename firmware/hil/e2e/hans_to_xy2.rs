@@ -4,12 +4,13 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
+    use crate::e2e::checks::assert_identity_axes;
     use embassy_futures::select::{select, Either};
     use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
     use embassy_stm32::peripherals::PG8;
     use embassy_stm32::{pac, peripherals, Peri};
     use embassy_time::{with_timeout, Duration, Instant};
-    use shared::bridge::{AfterHold, Timing, ZSource};
+    use shared::bridge::{AfterHold, Timing};
     use shared::hans::frame::{read_slot, write_slot, Frame, FRAME_BITS, RING_BYTES, RING_SLOTS};
     use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
     use shared::hans::tx::LEAD_SLOTS;
@@ -212,13 +213,7 @@ mod tests {
         // checked here.
         let config = config::load().unwrap();
         let roles = Roles::of(&config);
-        let a = config.axes;
-        assert!(
-            !a.swap_xy && !a.invert_x && !a.invert_y && !a.invert_z,
-            "axis map"
-        );
-        assert_eq!((a.offset_x, a.offset_y, a.offset_z), (0, 0, 0), "offsets");
-        assert_eq!(config.z.source, ZSource::Input);
+        assert_identity_axes(&config);
         assert_eq!(config.head.xy2.mode, Mode::Standard16);
         assert_eq!(config.output.timing, Timing::FreeRunning);
         assert_eq!(config.output.frame_rate_hz, 100_000);

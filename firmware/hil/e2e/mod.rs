@@ -3,6 +3,7 @@
 //! the pairing it is written for: `build.rs` sets the cfg `bridge_pairing` from the
 //! baked configuration (README "Hardware-in-the-loop self-tests").
 
+mod checks;
 #[cfg(bridge_pairing = "hans_to_xy2")]
 mod hans_to_xy2;
 #[cfg(any(

@@ -3,12 +3,13 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
+    use crate::e2e::checks::assert_identity_axes;
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
     use embassy_stm32::peripherals::PA4;
     use embassy_stm32::{pac, Peri};
     use embassy_time::{with_timeout, Duration, Instant};
-    use shared::bridge::{AfterHold, ZSource};
+    use shared::bridge::AfterHold;
     use shared::hans::frame::{write_slot, Frame, RING_BYTES, RING_SLOTS};
     use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
     use shared::hans::{status_frame, DeviceExt, GalvoStatus, ZAlarms};
@@ -120,13 +121,7 @@ mod tests {
         // checked here.
         let config = config::load().unwrap();
         let roles = Roles::of(&config);
-        let a = config.axes;
-        assert!(
-            !a.swap_xy && !a.invert_x && !a.invert_y && !a.invert_z,
-            "axis map"
-        );
-        assert_eq!((a.offset_x, a.offset_y, a.offset_z), (0, 0, 0), "offsets");
-        assert_eq!(config.z.source, ZSource::Input);
+        assert_identity_axes(&config);
         assert_eq!(config.failsafe.after_hold, AfterHold::Park);
         assert_ne!(config.failsafe.status_timeout_us, 0);
         let f = config.failsafe;

@@ -4,12 +4,13 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
+    use crate::e2e::checks::{assert_identity_axes, FrameSeq};
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use embassy_futures::select::{select, Either};
     use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
     use embassy_stm32::{pac, peripherals, Peri};
     use embassy_time::{Duration, Instant};
-    use shared::bridge::{AfterHold, Timing, ZSource};
+    use shared::bridge::{AfterHold, Timing};
     use shared::model::Axis;
     use shared::xy2::rx::{Event as Xy2Event, PinMap, Receiver as Xy2Receiver};
     use shared::xy2::{Frame as Frame2, LinkConfig, Mode};
@@ -57,21 +58,8 @@ mod tests {
         framing: u32,
         /// Periods that are neither a frame sent (translated) nor the park position.
         unknown: u32,
-        /// First and last frame number seen.
-        first: Option<u32>,
-        last: Option<u32>,
-        /// Frames seen for the first time, repeats of the last one, steps back;
-        /// the largest step between two distinct frames.
-        distinct: u32,
-        repeats: u32,
-        backwards: u32,
-        max_step: u32,
-        /// The frame with the flipped parity bit was seen.
-        bad_seen: bool,
-        /// Park periods; of them before the first frame; frames after a park.
-        park: u32,
-        park_before_first: u32,
-        frames_after_park: u32,
+        /// The frame numbers received, in order, and the park periods.
+        seq: FrameSeq,
     }
 
     /// ERROR_STATE packets on the backchannel towards the controller, by phase:
@@ -128,13 +116,7 @@ mod tests {
         // checked here.
         let config = config::load().unwrap();
         let roles = Roles::of(&config);
-        let a = config.axes;
-        assert!(
-            !a.swap_xy && !a.invert_x && !a.invert_y && !a.invert_z,
-            "axis map"
-        );
-        assert_eq!((a.offset_x, a.offset_y, a.offset_z), (0, 0, 0), "offsets");
-        assert_eq!(config.z.source, ZSource::Input);
+        assert_identity_axes(&config);
         assert_eq!(
             config.xy3_input_lines(),
             xy3::rx::Lines::XYZ,
@@ -426,8 +408,7 @@ mod tests {
                         }
                     }
                     if v == park {
-                        log.park += 1;
-                        log.park_before_first += u32::from(log.first.is_none());
+                        log.seq.park();
                         return;
                     }
                     let k = frame_of_x(v[0]);
@@ -435,19 +416,7 @@ mod tests {
                         log.unknown += 1;
                         return;
                     }
-                    log.frames_after_park += u32::from(log.park > 0);
-                    log.bad_seen |= k == BAD;
-                    log.first.get_or_insert(k);
-                    match log.last {
-                        Some(last) if k == last => log.repeats += 1,
-                        Some(last) if k < last => log.backwards += 1,
-                        Some(last) => {
-                            log.distinct += 1;
-                            log.max_step = log.max_step.max(k - last);
-                        }
-                        None => log.distinct += 1,
-                    }
-                    log.last = Some(log.last.map_or(k, |l| l.max(k)));
+                    log.seq.frame(k, k == BAD);
                 });
             }
         };
@@ -483,31 +452,7 @@ mod tests {
         assert_eq!(log.failed, 0, "head periods failing their check");
         assert_eq!(log.framing, 0, "head periods with a wrong SYNC pattern");
         assert_eq!(log.unknown, 0, "head periods that are no frame sent");
-        assert!(
-            !log.bad_seen,
-            "the frame with a flipped parity bit reached the head"
-        );
-        assert_eq!(log.backwards, 0, "frames out of order");
-        assert_eq!(log.park_before_first, 0, "park before the first frame");
-        assert_eq!(log.frames_after_park, 0, "frames after the park");
-        let first = log.first.expect("no frame reached the head");
-        assert!(
-            (recovery - 1..recovery + 10).contains(&first),
-            "first frame {}",
-            first
-        );
-        assert!(
-            log.last.is_some_and(|l| l + 4 >= N - 1),
-            "last frame {:?}",
-            log.last
-        );
-        assert!(log.max_step <= 4, "a step of {} frames", log.max_step);
-        assert!(
-            log.distinct >= (N - recovery) * 6 / 10,
-            "{} distinct frames",
-            log.distinct
-        );
-        assert!(log.park >= 1000, "{} park periods", log.park);
+        log.seq.check(N, recovery);
         // The laser gate.
         assert_eq!(gate.before, 0, "gate on before the input");
         let on = gate.on_after_us.expect("gate never on");
