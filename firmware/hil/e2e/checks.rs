@@ -1,9 +1,24 @@
-//! Verdicts the end-to-end tests share, as plain functions and structs over what a
-//! test recorded: the baked settings every pairing's expectations rest on, and the
-//! order of the frame numbers a head received (README "Hardware-in-the-loop
+//! What the end-to-end tests share, as plain functions and structs over what a test
+//! recorded or reads once: the baked settings every pairing's expectations rest
+//! on, the order of the frame numbers a head received, the laser gate's timing
+//! against the input, and the head drivers' switch-on (README "Hardware-in-the-loop
 //! self-tests"). Each item is compiled only for the pairings whose test uses it,
 //! so no image carries one it does not call.
 
+#[cfg(any(
+    bridge_pairing = "xy2_to_xy3",
+    bridge_pairing = "hans_to_xy2",
+    bridge_pairing = "xy3_to_xy2",
+    bridge_pairing = "xy2_to_xy2"
+))]
+use embassy_stm32::pac;
+#[cfg(any(
+    bridge_pairing = "xy2_to_xy3",
+    bridge_pairing = "hans_to_xy2",
+    bridge_pairing = "xy3_to_xy2",
+    bridge_pairing = "xy2_to_xy2"
+))]
+use embassy_time::{Duration, Instant};
 use shared::bridge::{Config, ZSource};
 
 /// Checks the baked settings every end-to-end test's expectations rest on: the
@@ -112,4 +127,110 @@ impl FrameSeq {
         );
         assert!(self.park >= 1000, "{} park periods", self.park);
     }
+}
+
+/// The laser gate, sampled every 100 us by the tests whose gate follows the input
+/// link alone (`laser.gate = "link_ok"`, no head alarm): violations counted per
+/// phase of the test's source (0 before the input, 1 while it runs, 2 once it
+/// stopped).
+#[cfg(any(bridge_pairing = "hans_to_xy2", bridge_pairing = "xy3_to_xy2"))]
+#[derive(Default, Debug, defmt::Format)]
+pub struct GateWatch {
+    /// Samples with the gate on before the input.
+    pub before: u32,
+    /// When the gate first came on after the input started, and samples with it
+    /// off after that while the input runs.
+    pub on_after_us: Option<u64>,
+    pub drops: u32,
+    /// Samples once the input stopped, and of them with the gate still on more
+    /// than 6 ms after.
+    pub late: u32,
+    pub samples_after: u32,
+}
+
+#[cfg(any(bridge_pairing = "hans_to_xy2", bridge_pairing = "xy3_to_xy2"))]
+impl GateWatch {
+    /// Records one sample `on` of the gate in `phase`, `since_input` after the
+    /// input started and `since_stop` after it stopped (`None` while the stop is
+    /// not yet timed). Phases past 2 are not recorded.
+    pub fn sample(
+        &mut self,
+        phase: u8,
+        on: bool,
+        since_input: Duration,
+        since_stop: Option<Duration>,
+    ) {
+        match phase {
+            0 => self.before += u32::from(on),
+            1 => match (self.on_after_us, on) {
+                (None, true) => self.on_after_us = Some(since_input.as_micros()),
+                (Some(_), false) => self.drops += 1,
+                _ => {}
+            },
+            2 => {
+                if let Some(t) = since_stop {
+                    self.samples_after += 1;
+                    if t > Duration::from_millis(6) && on {
+                        self.late += 1;
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+
+    /// The verdict: off before the input, on within 10 ms of it and on until it
+    /// stops, off within 6 ms after and for good (over more than 1000 samples,
+    /// 100 ms).
+    pub fn check(&self) {
+        assert_eq!(self.before, 0, "gate on before the input");
+        let on = self.on_after_us.expect("gate never on");
+        assert!(on < 10_000, "gate on {} us after the input", on);
+        assert_eq!(self.drops, 0, "gate off while the input runs");
+        assert!(
+            self.samples_after > 1000,
+            "{} samples after the input",
+            self.samples_after
+        );
+        assert_eq!(self.late, 0, "gate still on 6 ms after the input stopped");
+    }
+}
+
+/// Waits for the bridge to switch the head's line drivers on (PF11 high), which it
+/// does once its idle pattern plays on the head's lines: the point from which a
+/// read-back of the head's output sees the bridge's and no floating pins. Fails
+/// after 100 ms.
+#[cfg(any(
+    bridge_pairing = "xy2_to_xy3",
+    bridge_pairing = "hans_to_xy2",
+    bridge_pairing = "xy3_to_xy2",
+    bridge_pairing = "xy2_to_xy2"
+))]
+pub async fn head_drivers_on() {
+    let pf = pac::GPIOF;
+    let t0 = Instant::now();
+    while pf.odr().read().odr(11) != pac::gpio::vals::Odr::HIGH {
+        assert!(
+            t0.elapsed() < Duration::from_millis(100),
+            "head drivers never enabled"
+        );
+        embassy_time::Timer::after_micros(100).await;
+    }
+}
+
+/// Checks that the head mux select (PF15) is driven, and low: the head's lines
+/// carry the waveform output.
+#[cfg(any(bridge_pairing = "xy2_to_xy3", bridge_pairing = "hans_to_xy2"))]
+pub fn assert_mux_on_waveform() {
+    let pf = pac::GPIOF;
+    assert_eq!(
+        pf.moder().read().moder(15),
+        pac::gpio::vals::Moder::OUTPUT,
+        "PF15 released"
+    );
+    assert_eq!(
+        pf.odr().read().odr(15),
+        pac::gpio::vals::Odr::LOW,
+        "PF15 not on the waveform"
+    );
 }

@@ -4,7 +4,9 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::checks::assert_identity_axes;
+    use crate::e2e::checks::{
+        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, GateWatch,
+    };
     use embassy_futures::select::{select, Either};
     use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
     use embassy_stm32::peripherals::PG8;
@@ -298,24 +300,8 @@ mod tests {
         // The bridge switches the head drivers on once its idle pattern plays; the
         // mux select stays driven low (waveform).
         let pf = pac::GPIOF;
-        let t0 = Instant::now();
-        while pf.odr().read().odr(11) != pac::gpio::vals::Odr::HIGH {
-            assert!(
-                t0.elapsed() < Duration::from_millis(100),
-                "head drivers never enabled"
-            );
-            embassy_time::Timer::after_micros(100).await;
-        }
-        assert_eq!(
-            pf.moder().read().moder(15),
-            pac::gpio::vals::Moder::OUTPUT,
-            "PF15 released"
-        );
-        assert_eq!(
-            pf.odr().read().odr(15),
-            pac::gpio::vals::Odr::LOW,
-            "PF15 not on the waveform"
-        );
+        head_drivers_on().await;
+        assert_mux_on_waveform();
         // Head side read back on the controller-side XY2 input: TIM1 samples port G
         // on every falling edge of the head's CLK (PE7).
         let x = r.xy2_in;
@@ -368,38 +354,16 @@ mod tests {
         };
 
         // The gate every 100 us: violations counted per phase.
-        #[derive(Default, Debug, defmt::Format)]
-        struct Gate {
-            before: u32,
-            on_after_us: Option<u64>,
-            drops: u32,
-            late: u32,
-            samples_after: u32,
-        }
-        let mut gate = Gate::default();
+        let mut gate = GateWatch::default();
         let gate_sampler = async {
             loop {
                 let g = gate_high();
-                match phase.get() {
-                    0 => gate.before += u32::from(g),
-                    1 => {
-                        let t = input_at.get().elapsed().as_micros();
-                        match (gate.on_after_us, g) {
-                            (None, true) => gate.on_after_us = Some(t),
-                            (Some(_), false) => gate.drops += 1,
-                            _ => {}
-                        }
-                    }
-                    2 => {
-                        if let Some(t) = stop_at.get().map(|t: Instant| t.elapsed()) {
-                            gate.samples_after += 1;
-                            if t > Duration::from_millis(6) && g {
-                                gate.late += 1;
-                            }
-                        }
-                    }
-                    _ => break,
+                let p = phase.get();
+                if p > 2 {
+                    break;
                 }
+                let since_stop = stop_at.get().map(|t: Instant| t.elapsed());
+                gate.sample(p, g, input_at.get().elapsed(), since_stop);
                 embassy_time::Timer::after_micros(100).await;
             }
         };
@@ -531,16 +495,7 @@ mod tests {
         );
         assert!(log.park >= 1000, "{} park periods", log.park);
         // The laser gate.
-        assert_eq!(gate.before, 0, "gate on before the input");
-        let on = gate.on_after_us.expect("gate never on");
-        assert!(on < 10_000, "gate on {} us after the input", on);
-        assert_eq!(gate.drops, 0, "gate off while the input runs");
-        assert!(
-            gate.samples_after > 1000,
-            "{} samples after the input",
-            gate.samples_after
-        );
-        assert_eq!(gate.late, 0, "gate still on 6 ms after the input stopped");
+        gate.check();
         assert!(!gate_high(), "gate on at the end");
         // The STATUS towards the controller: frames of the bridge's, none cut, the
         // lost input reported (as a communication alarm: `hans::neutral`) before

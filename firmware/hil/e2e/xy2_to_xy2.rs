@@ -5,7 +5,7 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::checks::{assert_identity_axes, FrameSeq};
+    use crate::e2e::checks::{assert_identity_axes, head_drivers_on, FrameSeq};
     use core::cell::Cell;
 
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
@@ -398,14 +398,7 @@ mod tests {
 
         // The bridge switches the head drivers on once its idle pattern plays.
         let pf = pac::GPIOF;
-        let t0 = Instant::now();
-        while pf.odr().read().odr(11) != pac::gpio::vals::Odr::HIGH {
-            assert!(
-                t0.elapsed() < Duration::from_millis(100),
-                "head drivers never enabled"
-            );
-            embassy_time::Timer::after_micros(100).await;
-        }
+        head_drivers_on().await;
         // The SCK-bus buffer stays off (an XY2-100 controller) and the pair-6
         // driver on (it carries the STATUS word).
         assert_eq!(

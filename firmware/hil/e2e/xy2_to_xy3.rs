@@ -2,12 +2,13 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::checks::{assert_identity_axes, FrameSeq};
+    use crate::e2e::checks::{
+        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, FrameSeq,
+    };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
     use embassy_stm32::pac;
     use embassy_stm32::usart::UartTx;
-    use embassy_time::Duration;
     use shared::xy2::tx::Transmitter as Xy2Tx;
     use shared::xy2::{
         decode as xy2_decode, encode as xy2_encode, Frame as Frame2, LinkConfig, StatusLevel,
@@ -175,24 +176,8 @@ mod tests {
         // The bridge switches the head drivers on once its idle pattern plays; the
         // mux select stays driven low (waveform).
         let pf = pac::GPIOF;
-        let t0 = Instant::now();
-        while pf.odr().read().odr(11) != pac::gpio::vals::Odr::HIGH {
-            assert!(
-                t0.elapsed() < Duration::from_millis(100),
-                "head drivers never enabled"
-            );
-            embassy_time::Timer::after_micros(100).await;
-        }
-        assert_eq!(
-            pf.moder().read().moder(15),
-            pac::gpio::vals::Moder::OUTPUT,
-            "PF15 released"
-        );
-        assert_eq!(
-            pf.odr().read().odr(15),
-            pac::gpio::vals::Odr::LOW,
-            "PF15 not on the waveform"
-        );
+        head_drivers_on().await;
+        assert_mux_on_waveform();
         // Head side read back, started now that the head's lines idle (SYNC high,
         // CLK low; before, the unconfigured pins floated): SPI3 (X), SPI4 (Y), SPI5
         // (Z) slaves selected by the head's SYNC, and the SYNC marks, whose every
