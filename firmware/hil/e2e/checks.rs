@@ -12,13 +12,14 @@
     bridge_pairing = "xy2_to_xy2"
 ))]
 use embassy_stm32::pac;
+use embassy_time::Duration;
 #[cfg(any(
     bridge_pairing = "xy2_to_xy3",
     bridge_pairing = "hans_to_xy2",
     bridge_pairing = "xy3_to_xy2",
     bridge_pairing = "xy2_to_xy2"
 ))]
-use embassy_time::{Duration, Instant};
+use embassy_time::Instant;
 use shared::bridge::{Config, ZSource};
 
 /// Checks the baked settings every end-to-end test's expectations rest on: the
@@ -233,4 +234,30 @@ pub fn assert_mux_on_waveform() {
         pac::gpio::vals::Odr::LOW,
         "PF15 not on the waveform"
     );
+}
+
+/// Where the head's XY2-100 lines sit in the port samples the waveform-to-XY2
+/// tests feed `shared::xy2::rx::Receiver`: SYNC, X, Y, Z in bits 0 to 3, as PG0 to
+/// PG3 of the controller-side XY2 input carry them (and as `xy2_to_xy2` puts its
+/// SPI read-backs together).
+#[cfg(any(
+    bridge_pairing = "hans_to_xy2",
+    bridge_pairing = "xy3_to_xy2",
+    bridge_pairing = "xy2_to_xy2"
+))]
+pub const HEAD_XY2_PINS: shared::xy2::rx::PinMap = shared::xy2::rx::PinMap {
+    sync: 0,
+    x: 1,
+    y: 2,
+    z: Some(3),
+};
+
+/// Returns `grace` after the test's source reached its `last` phase: the end of
+/// the window in which a test reads the head's output back, so that the read-back
+/// covers the park periods after the input stopped.
+pub async fn phase_end(phase: &core::cell::Cell<u8>, last: u8, grace: Duration) {
+    while phase.get() < last {
+        embassy_time::Timer::after_millis(1).await;
+    }
+    embassy_time::Timer::after(grace).await;
 }

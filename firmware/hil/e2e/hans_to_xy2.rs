@@ -5,7 +5,8 @@
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use crate::e2e::checks::{
-        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, GateWatch,
+        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, phase_end, GateWatch,
+        HEAD_XY2_PINS,
     };
     use embassy_futures::select::{select, Either};
     use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
@@ -18,7 +19,7 @@ mod tests {
     use shared::hans::tx::LEAD_SLOTS;
     use shared::hans::StatusReceiver;
     use shared::model::{Alarms, FaultKind, HeadStatus};
-    use shared::xy2::rx::{Event as Xy2Event, PinMap, Receiver as Xy2Receiver};
+    use shared::xy2::rx::{Event as Xy2Event, Receiver as Xy2Receiver};
     use shared::xy2::{Frame as Frame2, LinkConfig, Mode};
     use xy_bridge::app::{self, Executors};
     use xy_bridge::board::{self, Board, HansStatusInRes, HANS_FS_HZ};
@@ -313,13 +314,7 @@ mod tests {
             mode: config.head.xy2.mode,
             parity: config.head.xy2.parity,
         };
-        let pins = PinMap {
-            sync: 0,
-            x: 1,
-            y: 2,
-            z: Some(3),
-        };
-        let mut rx = Xy2Receiver::new(pins, link).unwrap();
+        let mut rx = Xy2Receiver::new(HEAD_XY2_PINS, link).unwrap();
 
         let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
 
@@ -452,12 +447,7 @@ mod tests {
                 });
             }
         };
-        let deadline = async {
-            while phase.get() < 3 {
-                embassy_time::Timer::after_millis(1).await;
-            }
-            embassy_time::Timer::after_millis(50).await;
-        };
+        let deadline = phase_end(&phase, 3, Duration::from_millis(50));
         let reader = async { matches!(select(reader, deadline).await, Either::First(())) };
         let (_, _, _, read_to_the_end) =
             embassy_futures::join::join4(controller_run, gate_sampler, status_run, reader).await;

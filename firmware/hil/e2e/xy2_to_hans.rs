@@ -3,7 +3,7 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::checks::assert_identity_axes;
+    use crate::e2e::checks::{assert_identity_axes, phase_end};
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
     use embassy_stm32::peripherals::PA4;
@@ -345,12 +345,7 @@ mod tests {
                 });
             }
         };
-        let deadline = async {
-            while phase.get() < 3 {
-                embassy_time::Timer::after_millis(1).await;
-            }
-            embassy_time::Timer::after_millis(100).await;
-        };
+        let deadline = phase_end(&phase, 3, Duration::from_millis(100));
         let reader = async { matches!(select(reader, deadline).await, Either::First(())) };
         let (_, _, read_to_the_end) =
             embassy_futures::join::join3(source_run, levels, reader).await;

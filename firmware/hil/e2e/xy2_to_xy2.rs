@@ -5,9 +5,11 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::checks::{assert_identity_axes, head_drivers_on, FrameSeq};
     use core::cell::Cell;
 
+    use crate::e2e::checks::{
+        assert_identity_axes, head_drivers_on, phase_end, FrameSeq, HEAD_XY2_PINS,
+    };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
     use embassy_futures::select::{select, Either};
@@ -19,7 +21,7 @@ mod tests {
     use embassy_time::{Duration, Instant};
     use shared::bridge::{AfterHold, StatusForm, Timing};
     use shared::model::Alarms;
-    use shared::xy2::rx::{Event as Xy2Event, PinMap, Receiver as Xy2Receiver};
+    use shared::xy2::rx::{Event as Xy2Event, Receiver as Xy2Receiver};
     use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
     use shared::xy2::tx::Transmitter as Xy2Tx;
     use shared::xy2::{
@@ -464,16 +466,7 @@ mod tests {
             head_slot,
             head_ok.to_frame(&head_link),
         );
-        let mut rx = Xy2Receiver::new(
-            PinMap {
-                sync: 0,
-                x: 1,
-                y: 2,
-                z: Some(3),
-            },
-            head_link,
-        )
-        .unwrap();
+        let mut rx = Xy2Receiver::new(HEAD_XY2_PINS, head_link).unwrap();
         let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
 
         // Phases: 0 before the input, 1 while good frames are written (head OK),
@@ -703,12 +696,7 @@ mod tests {
                 });
             }
         };
-        let deadline = async {
-            while phase.get() < 5 {
-                embassy_time::Timer::after_millis(1).await;
-            }
-            embassy_time::Timer::after_millis(50).await;
-        };
+        let deadline = phase_end(&phase, 5, Duration::from_millis(50));
         let head_reader =
             async { matches!(select(head_reader, deadline).await, Either::First(())) };
         let (_, _, _, _, read_to_the_end) = embassy_futures::join::join5(

@@ -3,12 +3,13 @@
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use crate::e2e::checks::{
-        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, FrameSeq,
+        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, phase_end, FrameSeq,
     };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
     use embassy_stm32::pac;
     use embassy_stm32::usart::UartTx;
+    use embassy_time::Duration;
     use shared::xy2::tx::Transmitter as Xy2Tx;
     use shared::xy2::{
         decode as xy2_decode, encode as xy2_encode, Frame as Frame2, LinkConfig, StatusLevel,
@@ -321,12 +322,7 @@ mod tests {
                 }
             }
         };
-        let deadline = async {
-            while phase.get() < 3 {
-                embassy_time::Timer::after_millis(1).await;
-            }
-            embassy_time::Timer::after_millis(50).await;
-        };
+        let deadline = phase_end(&phase, 3, Duration::from_millis(50));
         let reader = async { matches!(select(reader, deadline).await, Either::First(())) };
         let (_, _, _, read_to_the_end) =
             embassy_futures::join::join4(source_run, head_sim, sampler, reader).await;

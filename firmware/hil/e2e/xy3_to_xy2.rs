@@ -4,7 +4,9 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::checks::{assert_identity_axes, head_drivers_on, FrameSeq, GateWatch};
+    use crate::e2e::checks::{
+        assert_identity_axes, head_drivers_on, phase_end, FrameSeq, GateWatch, HEAD_XY2_PINS,
+    };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use embassy_futures::select::{select, Either};
     use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
@@ -12,7 +14,7 @@ mod tests {
     use embassy_time::{Duration, Instant};
     use shared::bridge::{AfterHold, Timing};
     use shared::model::Axis;
-    use shared::xy2::rx::{Event as Xy2Event, PinMap, Receiver as Xy2Receiver};
+    use shared::xy2::rx::{Event as Xy2Event, Receiver as Xy2Receiver};
     use shared::xy2::{Frame as Frame2, LinkConfig, Mode};
     use shared::xy3;
     use shared::xy3::back::{Event, Packet, Parser};
@@ -237,13 +239,7 @@ mod tests {
             mode: config.head.xy2.mode,
             parity: config.head.xy2.parity,
         };
-        let pins = PinMap {
-            sync: 0,
-            x: 1,
-            y: 2,
-            z: Some(3),
-        };
-        let mut rx = Xy2Receiver::new(pins, link).unwrap();
+        let mut rx = Xy2Receiver::new(HEAD_XY2_PINS, link).unwrap();
         let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
 
         // Phases, set by the source: 0 before the input, 1 while frames are written,
@@ -391,12 +387,7 @@ mod tests {
                 });
             }
         };
-        let deadline = async {
-            while phase.get() < 3 {
-                embassy_time::Timer::after_millis(1).await;
-            }
-            embassy_time::Timer::after_millis(50).await;
-        };
+        let deadline = phase_end(&phase, 3, Duration::from_millis(50));
         let reader = async { matches!(select(reader, deadline).await, Either::First(())) };
         let (_, _, _, read_to_the_end) =
             embassy_futures::join::join4(source_run, gate_sampler, back_reader, reader).await;
