@@ -261,3 +261,65 @@ pub async fn phase_end(phase: &core::cell::Cell<u8>, last: u8, grace: Duration) 
     }
     embassy_time::Timer::after(grace).await;
 }
+
+/// The periods an XY2-100 head received, as the waveform-to-XY2 tests decode them
+/// with `shared::xy2::rx::Receiver`: how many, how many before the input, how
+/// many with a line failing its check or missing, and the framing faults after the
+/// first period (the read-back may start inside a frame, or on edges that are no
+/// whole frame).
+#[cfg(any(
+    bridge_pairing = "hans_to_xy2",
+    bridge_pairing = "xy3_to_xy2",
+    bridge_pairing = "xy2_to_xy2"
+))]
+#[derive(Default, Debug, defmt::Format)]
+pub struct Xy2Periods {
+    pub periods: u32,
+    pub before_input: u32,
+    pub failed: u32,
+    pub framing: u32,
+}
+
+#[cfg(any(
+    bridge_pairing = "hans_to_xy2",
+    bridge_pairing = "xy3_to_xy2",
+    bridge_pairing = "xy2_to_xy2"
+))]
+impl Xy2Periods {
+    /// Records one receiver event (`before`: the input has not started) and
+    /// returns the period's X, Y, Z positions when it is a frame period whose
+    /// three lines pass their checks as 16-bit positions.
+    pub fn record(&mut self, e: shared::xy2::rx::Event, before: bool) -> Option<[u16; 3]> {
+        use shared::xy2::rx::Event;
+        use shared::xy2::Frame;
+        let p = match e {
+            Event::Frame(p) => p,
+            Event::Framing(_) => {
+                self.framing += u32::from(self.periods > 0);
+                return None;
+            }
+            Event::Resync => return None,
+        };
+        self.periods += 1;
+        self.before_input += u32::from(before);
+        match (p.x, p.y, p.z) {
+            (
+                Ok(Frame::Position16(x)),
+                Ok(Frame::Position16(y)),
+                Some(Ok(Frame::Position16(z))),
+            ) => Some([x, y, z]),
+            _ => {
+                self.failed += 1;
+                None
+            }
+        }
+    }
+
+    /// The verdict: no period before the input, none failing its check, no
+    /// framing fault once the first period is in.
+    pub fn check(&self) {
+        assert_eq!(self.before_input, 0, "head periods before the input");
+        assert_eq!(self.failed, 0, "head periods failing their check");
+        assert_eq!(self.framing, 0, "head periods with a wrong SYNC pattern");
+    }
+}

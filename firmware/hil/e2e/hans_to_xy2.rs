@@ -6,7 +6,7 @@
 mod tests {
     use crate::e2e::checks::{
         assert_identity_axes, assert_mux_on_waveform, head_drivers_on, phase_end, GateWatch,
-        HEAD_XY2_PINS,
+        Xy2Periods, HEAD_XY2_PINS,
     };
     use embassy_futures::select::{select, Either};
     use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
@@ -19,8 +19,8 @@ mod tests {
     use shared::hans::tx::LEAD_SLOTS;
     use shared::hans::StatusReceiver;
     use shared::model::{Alarms, FaultKind, HeadStatus};
-    use shared::xy2::rx::{Event as Xy2Event, Receiver as Xy2Receiver};
-    use shared::xy2::{Frame as Frame2, LinkConfig, Mode};
+    use shared::xy2::rx::Receiver as Xy2Receiver;
+    use shared::xy2::{LinkConfig, Mode};
     use xy_bridge::app::{self, Executors};
     use xy_bridge::board::{self, Board, HansStatusInRes, HANS_FS_HZ};
     use xy_bridge::config::{self, Roles};
@@ -100,12 +100,9 @@ mod tests {
     /// What the head received, checked period by period against the ring's frames.
     #[derive(Default, Debug, defmt::Format)]
     struct HeadLog {
-        /// Periods decoded, and of them the ones before the input started.
-        periods: u32,
-        before_input: u32,
-        /// Periods where a line failed its check or was missing, framing faults.
-        failed: u32,
-        framing: u32,
+        /// The periods decoded, and of them the ones before the input, with a
+        /// line failing its check or missing, with a framing fault.
+        head: Xy2Periods,
         /// Periods that are neither a ring frame (translated) nor the park position.
         unknown: u32,
         /// Frames seen: the same slot as the last one, a step forward of 1..=4
@@ -399,29 +396,9 @@ mod tests {
                 }
                 let before = phase.get() == 0;
                 rx.feed(&samples, &mut |e| {
-                    let p = match e {
-                        Xy2Event::Frame(p) => p,
-                        // The sampler may start inside a frame (if the head
-                        // sent before the input): only a fault after the first
-                        // period counts.
-                        Xy2Event::Framing(_) => {
-                            log.framing += u32::from(log.periods > 0);
-                            return;
-                        }
-                        Xy2Event::Resync => return,
-                    };
-                    log.periods += 1;
-                    log.before_input += u32::from(before);
-                    let (
-                        Ok(Frame2::Position16(vx)),
-                        Ok(Frame2::Position16(vy)),
-                        Some(Ok(Frame2::Position16(vz))),
-                    ) = (p.x, p.y, p.z)
-                    else {
-                        log.failed += 1;
+                    let Some(v) = log.head.record(e, before) else {
                         return;
                     };
-                    let v = [vx, vy, vz];
                     if v == park {
                         log.park += 1;
                         log.park_before_first += u32::from(last.is_none());
@@ -465,9 +442,7 @@ mod tests {
             "the head's output stopped (or never started)"
         );
         // The head: what it got, in order, translated, never the flipped frame.
-        assert_eq!(log.before_input, 0, "head periods before the input");
-        assert_eq!(log.failed, 0, "head periods failing their check");
-        assert_eq!(log.framing, 0, "head periods with a wrong SYNC pattern");
+        log.head.check();
         assert_eq!(log.unknown, 0, "head periods that are no frame sent");
         assert!(
             !log.bad_seen,

@@ -8,7 +8,7 @@ mod tests {
     use core::cell::Cell;
 
     use crate::e2e::checks::{
-        assert_identity_axes, head_drivers_on, phase_end, FrameSeq, HEAD_XY2_PINS,
+        assert_identity_axes, head_drivers_on, phase_end, FrameSeq, Xy2Periods, HEAD_XY2_PINS,
     };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
@@ -21,7 +21,7 @@ mod tests {
     use embassy_time::{Duration, Instant};
     use shared::bridge::{AfterHold, StatusForm, Timing};
     use shared::model::Alarms;
-    use shared::xy2::rx::{Event as Xy2Event, Receiver as Xy2Receiver};
+    use shared::xy2::rx::Receiver as Xy2Receiver;
     use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
     use shared::xy2::tx::Transmitter as Xy2Tx;
     use shared::xy2::{
@@ -197,13 +197,9 @@ mod tests {
     /// What the head received, checked period by period against the frames sent.
     #[derive(Default, Debug, defmt::Format)]
     struct HeadLog {
-        /// Periods decoded, and of them before the input.
-        periods: u32,
-        before_input: u32,
-        /// Periods where a line failed its check or was missing; framing faults
-        /// after the first period.
-        failed: u32,
-        framing: u32,
+        /// The periods decoded, and of them the ones before the input, with a
+        /// line failing its check or missing, with a framing fault.
+        head: Xy2Periods,
         /// Periods that are neither a frame sent with its checks passing nor park.
         unknown: u32,
         /// The frame numbers received, in order, and the park periods.
@@ -660,28 +656,8 @@ mod tests {
                 }
                 let before = phase.get() == 0;
                 rx.feed(&samples, &mut |e| {
-                    let p = match e {
-                        Xy2Event::Frame(p) => p,
-                        // The first edges may be no whole frame: only a fault
-                        // after the first period counts.
-                        Xy2Event::Framing(_) => {
-                            log.framing += u32::from(log.periods > 0);
-                            return;
-                        }
-                        Xy2Event::Resync => return,
-                    };
-                    log.periods += 1;
-                    log.before_input += u32::from(before);
-                    let v = match (p.x, p.y, p.z) {
-                        (
-                            Ok(Frame2::Position16(x)),
-                            Ok(Frame2::Position16(y)),
-                            Some(Ok(Frame2::Position16(z))),
-                        ) => [x, y, z],
-                        _ => {
-                            log.failed += 1;
-                            return;
-                        }
+                    let Some(v) = log.head.record(e, before) else {
+                        return;
                     };
                     if v == park {
                         log.seq.park();
@@ -731,9 +707,7 @@ mod tests {
         );
         // The head: nothing before the input, then what it got, in order, never a
         // frame that failed its check.
-        assert_eq!(log.before_input, 0, "head periods before the input");
-        assert_eq!(log.failed, 0, "head periods failing their check");
-        assert_eq!(log.framing, 0, "head periods with a wrong SYNC pattern");
+        log.head.check();
         assert_eq!(log.unknown, 0, "head periods that are no good frame sent");
         log.seq.check(N, recovery);
         // The STATUS words towards the controller: `ctrl_word`'s choice for the

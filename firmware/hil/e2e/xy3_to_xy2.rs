@@ -5,7 +5,8 @@
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use crate::e2e::checks::{
-        assert_identity_axes, head_drivers_on, phase_end, FrameSeq, GateWatch, HEAD_XY2_PINS,
+        assert_identity_axes, head_drivers_on, phase_end, FrameSeq, GateWatch, Xy2Periods,
+        HEAD_XY2_PINS,
     };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use embassy_futures::select::{select, Either};
@@ -13,9 +14,8 @@ mod tests {
     use embassy_stm32::{pac, peripherals, Peri};
     use embassy_time::{Duration, Instant};
     use shared::bridge::{AfterHold, Timing};
-    use shared::model::Axis;
-    use shared::xy2::rx::{Event as Xy2Event, Receiver as Xy2Receiver};
-    use shared::xy2::{Frame as Frame2, LinkConfig, Mode};
+    use shared::xy2::rx::Receiver as Xy2Receiver;
+    use shared::xy2::{LinkConfig, Mode};
     use shared::xy3;
     use shared::xy3::back::{Event, Packet, Parser};
     use shared::xy3::{Frame as Frame3, FrameSize};
@@ -51,13 +51,9 @@ mod tests {
     /// What the head received, checked period by period against the frames sent.
     #[derive(Default, Debug, defmt::Format)]
     struct HeadLog {
-        /// Periods decoded, and of them before the input.
-        periods: u32,
-        before_input: u32,
-        /// Periods where a line failed its check or was missing; framing faults
-        /// after the first period.
-        failed: u32,
-        framing: u32,
+        /// The periods decoded, and of them the ones before the input, with a
+        /// line failing its check or missing, with a framing fault.
+        head: Xy2Periods,
         /// Periods that are neither a frame sent (translated) nor the park position.
         unknown: u32,
         /// The frame numbers received, in order, and the park periods.
@@ -347,33 +343,9 @@ mod tests {
                 }
                 let before = phase.get() == 0;
                 rx.feed(&samples, &mut |e| {
-                    let p = match e {
-                        Xy2Event::Frame(p) => p,
-                        // The sampler may start inside a frame: only a fault after
-                        // the first period counts.
-                        Xy2Event::Framing(_) => {
-                            log.framing += u32::from(log.periods > 0);
-                            return;
-                        }
-                        Xy2Event::Resync => return,
+                    let Some(v) = log.head.record(e, before) else {
+                        return;
                     };
-                    log.periods += 1;
-                    log.before_input += u32::from(before);
-                    let mut v = [0u16; 3];
-                    for (axis, v) in [Axis::X, Axis::Y, Axis::Z].iter().zip(v.iter_mut()) {
-                        let line = match axis {
-                            Axis::X => Some(p.x),
-                            Axis::Y => Some(p.y),
-                            _ => p.z,
-                        };
-                        match line {
-                            Some(Ok(Frame2::Position16(pos))) => *v = pos,
-                            _ => {
-                                log.failed += 1;
-                                return;
-                            }
-                        }
-                    }
                     if v == park {
                         log.seq.park();
                         return;
@@ -410,9 +382,7 @@ mod tests {
         );
         // The head: nothing before the input, then what it got, in order,
         // translated, never the flipped frame.
-        assert_eq!(log.before_input, 0, "head periods before the input");
-        assert_eq!(log.failed, 0, "head periods failing their check");
-        assert_eq!(log.framing, 0, "head periods with a wrong SYNC pattern");
+        log.head.check();
         assert_eq!(log.unknown, 0, "head periods that are no frame sent");
         log.seq.check(N, recovery);
         // The laser gate.
