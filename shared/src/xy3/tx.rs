@@ -335,11 +335,7 @@ impl Transmitter {
         out: &mut [u32],
     ) -> Result<(), TxError> {
         let out = self.slot(out)?;
-        if BITS32 {
-            self.fill::<32, 16, 65, WIDE>(words, out);
-        } else {
-            self.fill::<24, 12, 49, WIDE>(words, out);
-        }
+        self.fill_for::<BITS32, WIDE>(words, out);
         Ok(())
     }
 
@@ -349,10 +345,21 @@ impl Transmitter {
         // One copy of the bit loop per frame size, so it unrolls with constant shifts,
         // and per "U or W driven", so the common X Y Z head skips two idle lines.
         match (self.size, self.wide) {
-            (FrameSize::Bits24, false) => self.fill::<24, 12, 49, false>(words, out),
-            (FrameSize::Bits24, true) => self.fill::<24, 12, 49, true>(words, out),
-            (FrameSize::Bits32, false) => self.fill::<32, 16, 65, false>(words, out),
-            (FrameSize::Bits32, true) => self.fill::<32, 16, 65, true>(words, out),
+            (FrameSize::Bits24, false) => self.fill_for::<false, false>(words, out),
+            (FrameSize::Bits24, true) => self.fill_for::<false, true>(words, out),
+            (FrameSize::Bits32, false) => self.fill_for::<true, false>(words, out),
+            (FrameSize::Bits32, true) => self.fill_for::<true, true>(words, out),
+        }
+    }
+
+    /// [`Self::fill`] of 32-bit frames if `BITS32`, else 24-bit ones: the one place
+    /// a frame size's bit, pair and word counts are written down.
+    #[inline(always)]
+    fn fill_for<const BITS32: bool, const WIDE: bool>(&self, words: [u32; 5], out: &mut [u32]) {
+        if BITS32 {
+            self.fill::<32, 16, 65, WIDE>(words, out);
+        } else {
+            self.fill::<24, 12, 49, WIDE>(words, out);
         }
     }
 

@@ -785,18 +785,18 @@ impl HansRx {
         };
         let verified = self.evaluate(patterns, aligned, same, confirmed, ref_pattern, &mut gated);
         // A young lock learns phase and rate from the verified reference's mid-pair
-        // edges (`timing::YOUNG`; not a re-read frame's, `Timing::refine`): every
-        // pair's while the fit is thin, then every other pair's (`timing::DENSE`).
-        // In normal mode an unsettled frame that failed may still read right a
-        // little over, and its edges correct a line the hunt left off (`reread`).
-        // One test of the stage on a settled lock's path.
+        // edges (`timing::YOUNG`; not those of a frame re-read at a rounding step,
+        // `Timing::refine`): every pair's while the fit is thin, then every other
+        // pair's (`timing::DENSE`). In normal mode an unsettled frame that failed
+        // may still read right a little over, and its edges correct a line the hunt
+        // left off (`reread`). One test of the stage on a settled lock's path.
         if self.timing.young() {
             if let (true, Some(ring)) =
                 (verified & (1 << reference) != 0, self.rings.get(reference))
             {
                 let at = start.wrapping_add(ref_delay as u32);
                 self.timing.learn(ring, at, ref_pattern);
-            } else if verified == 0 && self.used & self.used.wrapping_sub(1) == 0 {
+            } else if verified == 0 && matches!(self.mode, Mode::Normal { .. }) {
                 self.reread();
             }
         }

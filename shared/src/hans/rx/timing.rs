@@ -414,7 +414,9 @@ impl Timing {
     /// out of bounds, are not taken: a frame read that far off cannot have
     /// verified. Nor are those of a frame re-read at a rounding step
     /// ([`Timing::rephase`]): its earlier edges lie a sample from its later ones,
-    /// which would tilt the line; the step's phase is all it tells.
+    /// which would tilt the line; the step's phase is all it tells. (A failed
+    /// young frame that `HansRx::reread` reads right a little over is taken: its
+    /// edges are one reading's.)
     // Inlined into `learn`, as when it was its one caller: called from
     // `HansRx::reread` too, it stayed out of line and cost the young lock ~30
     // instructions a frame (QEMU).
