@@ -5,12 +5,6 @@
 //! self-tests"). Each item is compiled only for the pairings whose test uses it,
 //! so no image carries one it does not call.
 
-#[cfg(any(
-    bridge_pairing = "xy2_to_xy3",
-    bridge_pairing = "hans_to_xy2",
-    bridge_pairing = "xy3_to_xy2",
-    bridge_pairing = "xy2_to_xy2"
-))]
 use embassy_stm32::pac;
 use embassy_time::Duration;
 #[cfg(any(
@@ -195,6 +189,16 @@ impl GateWatch {
         );
         assert_eq!(self.late, 0, "gate still on 6 ms after the input stopped");
     }
+}
+
+/// Whether the laser gate's pad (PF13) reads high: the level the laser sees,
+/// not the output register the supervisor writes.
+pub fn laser_gate_high() -> bool {
+    pac::GPIOF
+        .idr()
+        .read()
+        .idr(xy_bridge::board::LASER_GATE_PIN)
+        == pac::gpio::vals::Idr::HIGH
 }
 
 /// Waits for the bridge to switch the head's line drivers on (PF11 high), which it

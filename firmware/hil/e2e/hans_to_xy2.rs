@@ -5,8 +5,8 @@
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use crate::e2e::checks::{
-        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, phase_end, GateWatch,
-        Xy2Periods, HEAD_XY2_PINS,
+        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, laser_gate_high, phase_end,
+        GateWatch, Xy2Periods, HEAD_XY2_PINS,
     };
     use embassy_futures::select::{select, Either};
     use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
@@ -297,7 +297,6 @@ mod tests {
 
         // The bridge switches the head drivers on once its idle pattern plays; the
         // mux select stays driven low (waveform).
-        let pf = pac::GPIOF;
         head_drivers_on().await;
         assert_mux_on_waveform();
         // Head side read back on the controller-side XY2 input: TIM1 samples port G
@@ -312,8 +311,6 @@ mod tests {
             parity: config.head.xy2.parity,
         };
         let mut rx = Xy2Receiver::new(HEAD_XY2_PINS, link).unwrap();
-
-        let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
 
         // Phases, set by the controller: 0 before the input, 1 while it sends, 2
         // once the ring is back at zeros (`stop_at`), 3 done.
@@ -349,7 +346,7 @@ mod tests {
         let mut gate = GateWatch::default();
         let gate_sampler = async {
             loop {
-                let g = gate_high();
+                let g = laser_gate_high();
                 let p = phase.get();
                 if p > 2 {
                     break;
@@ -461,7 +458,7 @@ mod tests {
         assert!(log.park >= 1000, "{} park periods", log.park);
         // The laser gate.
         gate.check();
-        assert!(!gate_high(), "gate on at the end");
+        assert!(!laser_gate_high(), "gate on at the end");
         // The STATUS towards the controller: frames of the bridge's, none cut, the
         // lost input reported (as a communication alarm: `hans::neutral`) before
         // and after the input, not while it runs.

@@ -4,11 +4,11 @@
 
 #[cfg(any(bridge_pairing = "xy2_to_xy3", bridge_pairing = "xy2_to_hans"))]
 use {
+    super::checks::laser_gate_high,
     core::cell::Cell,
     embassy_stm32::pac,
     embassy_time::{Duration, Instant},
     shared::xy2::{Health, StatusLevel},
-    xy_bridge::board,
 };
 
 use shared::xy2;
@@ -59,11 +59,9 @@ impl Levels {
         stop_at: &Cell<Option<Instant>>,
         level: StatusLevel,
     ) {
-        let gate_high =
-            || pac::GPIOF.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
         let status = || level.health(pac::GPIOA.idr().read().idr(0) == pac::gpio::vals::Idr::HIGH);
         loop {
-            let (g, ok) = (gate_high(), status() == Health::Ok);
+            let (g, ok) = (laser_gate_high(), status() == Health::Ok);
             match phase.get() {
                 0 => {
                     self.gate_before += u32::from(g);

@@ -3,11 +3,11 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::checks::{assert_identity_axes, phase_end};
+    use crate::e2e::checks::{assert_identity_axes, laser_gate_high, phase_end};
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
     use embassy_stm32::peripherals::PA4;
-    use embassy_stm32::{pac, Peri};
+    use embassy_stm32::Peri;
     use embassy_time::{with_timeout, Duration, Instant};
     use shared::bridge::AfterHold;
     use shared::hans::frame::{write_slot, Frame, RING_BYTES, RING_SLOTS};
@@ -382,10 +382,6 @@ mod tests {
         assert!(log.park >= 100, "{} park frames", log.park);
         // The laser gate and the STATUS towards the controller.
         lv.check();
-        assert_eq!(
-            pac::GPIOF.idr().read().idr(board::LASER_GATE_PIN),
-            pac::gpio::vals::Idr::LOW,
-            "gate on at the end"
-        );
+        assert!(!laser_gate_high(), "gate on at the end");
     }
 }

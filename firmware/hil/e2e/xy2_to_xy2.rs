@@ -8,7 +8,8 @@ mod tests {
     use core::cell::Cell;
 
     use crate::e2e::checks::{
-        assert_identity_axes, head_drivers_on, phase_end, FrameSeq, Xy2Periods, HEAD_XY2_PINS,
+        assert_identity_axes, head_drivers_on, laser_gate_high, phase_end, FrameSeq, Xy2Periods,
+        HEAD_XY2_PINS,
     };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
@@ -463,7 +464,6 @@ mod tests {
             head_ok.to_frame(&head_link),
         );
         let mut rx = Xy2Receiver::new(HEAD_XY2_PINS, head_link).unwrap();
-        let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
 
         // Phases: 0 before the input, 1 while good frames are written (head OK),
         // 2 the head's alarm, 3 head OK again, 4 from the tail on (`stop_at`: once
@@ -532,7 +532,7 @@ mod tests {
         let mut gate = Gate::default();
         let gate_sampler = async {
             loop {
-                let g = gate_high();
+                let g = laser_gate_high();
                 match phase.get() {
                     0 => gate.before += u32::from(g),
                     1 => {
@@ -752,7 +752,7 @@ mod tests {
             gate.samples_after
         );
         assert_eq!(gate.late, 0, "gate on 6 ms after the input was lost");
-        assert!(!gate_high(), "gate on at the end");
+        assert!(!laser_gate_high(), "gate on at the end");
     }
 
     /// The slot that keeps the test head's DMA channel for the whole test.

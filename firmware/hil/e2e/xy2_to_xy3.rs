@@ -3,11 +3,11 @@
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use crate::e2e::checks::{
-        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, phase_end, FrameSeq,
+        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, laser_gate_high, phase_end,
+        FrameSeq,
     };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
-    use embassy_stm32::pac;
     use embassy_stm32::usart::UartTx;
     use embassy_time::Duration;
     use shared::xy2::tx::Transmitter as Xy2Tx;
@@ -176,7 +176,6 @@ mod tests {
 
         // The bridge switches the head drivers on once its idle pattern plays; the
         // mux select stays driven low (waveform).
-        let pf = pac::GPIOF;
         head_drivers_on().await;
         assert_mux_on_waveform();
         // Head side read back, started now that the head's lines idle (SYNC high,
@@ -217,8 +216,6 @@ mod tests {
             .unwrap(),
         ];
         let mut marks = SyncMarks::new(i.sync, i.exti, Irqs, 1024);
-
-        let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
 
         // Phases, set by the source: 0 before the input, 1 while frames are written,
         // 2 once the last frame is written (`stop_at`: once it played, the ring
@@ -344,6 +341,6 @@ mod tests {
         log.seq.check(N, recovery);
         // The laser gate and the STATUS towards the controller.
         lv.check();
-        assert!(!gate_high(), "gate on at the end");
+        assert!(!laser_gate_high(), "gate on at the end");
     }
 }

@@ -5,8 +5,8 @@
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use crate::e2e::checks::{
-        assert_identity_axes, head_drivers_on, phase_end, FrameSeq, GateWatch, Xy2Periods,
-        HEAD_XY2_PINS,
+        assert_identity_axes, head_drivers_on, laser_gate_high, phase_end, FrameSeq, GateWatch,
+        Xy2Periods, HEAD_XY2_PINS,
     };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use embassy_futures::select::{select, Either};
@@ -236,7 +236,6 @@ mod tests {
             parity: config.head.xy2.parity,
         };
         let mut rx = Xy2Receiver::new(HEAD_XY2_PINS, link).unwrap();
-        let gate_high = || pf.idr().read().idr(board::LASER_GATE_PIN) == pac::gpio::vals::Idr::HIGH;
 
         // Phases, set by the source: 0 before the input, 1 while frames are written,
         // 2 once the last frame is written (`stop_at`: once it played), 3 done.
@@ -280,7 +279,7 @@ mod tests {
         let mut gate = GateWatch::default();
         let gate_sampler = async {
             loop {
-                let g = gate_high();
+                let g = laser_gate_high();
                 let p = phase.get();
                 if p > 2 {
                     break;
@@ -387,7 +386,7 @@ mod tests {
         log.seq.check(N, recovery);
         // The laser gate.
         gate.check();
-        assert!(!gate_high(), "gate on at the end");
+        assert!(!laser_gate_high(), "gate on at the end");
         // The backchannel towards the controller: the lost input reported before
         // and after, not while the input runs.
         assert!(
