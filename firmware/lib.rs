@@ -7,7 +7,9 @@
 
 pub mod app;
 pub mod board;
-pub(crate) mod channels;
+// Public for the hardware-in-the-loop tests, which read what the firmware's own
+// tasks publish (e.g. the bridge's counters through its statistics snapshot).
+pub mod channels;
 pub mod config;
 pub mod drivers;
 mod ring;

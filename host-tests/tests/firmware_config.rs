@@ -4,7 +4,7 @@
 //! These tests run the same steps on the host: the shipped file must survive the
 //! trip unchanged, and a bad file must be refused with the key named.
 
-use shared::bridge::{Config, ConfigError, Protocol};
+use shared::bridge::{Config, ConfigError, Protocol, StatusForm};
 
 const SHIPPED: &str = include_str!("../../bridge.toml");
 
@@ -145,4 +145,27 @@ fn every_example_config_bakes_as_named() {
     // example.
     pairs.insert((Protocol::Xy2, Protocol::Xy3));
     assert_eq!(pairs.len(), 9, "{pairs:?}");
+}
+
+/// The two XY2-100 STATUS-word examples are the two images of the HIL end-to-end
+/// test through `head_word` (xtask's `HIL_PAIRINGS`; the test takes either
+/// geometry from the baked file): one with an even number of output ticks per frame
+/// period (40 at 100 kHz: 20 samples a period) and one with an odd number (41 at
+/// 97.56 kHz: 20 bits and an idle tick, 21 samples), as `tasks/encode.rs` derives
+/// them. A rate edited into the other parity would leave one of `head_word`'s
+/// thinning cases without its run through the tasks.
+#[test]
+fn xy2_word_examples_have_even_and_odd_head_ticks() {
+    let ticks = |stem: &str| {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../configs")
+            .join(format!("{stem}.toml"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        let config: Config = toml::from_str(&text).unwrap();
+        assert_eq!(config.head.protocol, Protocol::Xy2, "{stem}");
+        assert_eq!(config.head.xy2.status, StatusForm::Word, "{stem}");
+        shared::head_port::XY2_TICK_HZ / config.output.frame_rate_hz
+    };
+    assert_eq!(ticks("xy2-word-to-xy2-word"), 40);
+    assert_eq!(ticks("xy2-word-to-xy2-word-odd"), 41);
 }

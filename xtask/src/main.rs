@@ -45,12 +45,15 @@ const PROPTEST_SEED_VAR: &str = "PROPTEST_RNG_SEED";
 const PROPTEST_SEED: &str = "20261202";
 /// The configurations, besides the default `bridge.toml`, whose HIL image carries an
 /// end-to-end test through the firmware's tasks (`firmware/hil/e2e`: each test is
-/// compiled only into the image of its pairing, so each image is built once).
+/// compiled only into the image of its pairing, so each image is built once). The
+/// XY2-100 word pairing has two images, one per geometry of `head_word`'s thinning
+/// (40 and 41 output ticks per frame period; the test reads it from the config).
 const HIL_PAIRINGS: &[&str] = &[
     "configs/hans-normal-to-xy2.toml",
     "configs/xy2-to-hans.toml",
     "configs/xy3-to-xy2.toml",
     "configs/xy2-word-to-xy2-word.toml",
+    "configs/xy2-word-to-xy2-word-odd.toml",
 ];
 /// The build script's variable naming the configuration to bake (`build.rs`).
 const CONFIG_VAR: &str = "XY_BRIDGE_CONFIG";

@@ -1,11 +1,18 @@
-//! An XY2-100 controller -> XY2-100 head with the STATUS word on both sides
-//! (`configs/xy2-word-to-xy2-word.toml`): `line::xy2_in` with the status word
-//! towards the controller (`tasks/ctrl_word.rs`), and the waveform bridge loop with
-//! the XY2-100 encoder and the head's status word (`tasks/head_word.rs`).
+//! An XY2-100 controller -> XY2-100 head with the STATUS word on both sides:
+//! `line::xy2_in` with the status word towards the controller
+//! (`tasks/ctrl_word.rs`), and the waveform bridge loop with the XY2-100 encoder and
+//! the head's status word (`tasks/head_word.rs`). Two images carry it, one per
+//! geometry of `head_word`'s thinning: `configs/xy2-word-to-xy2-word.toml` (100 kHz,
+//! 40 output ticks per frame period: 20 samples) and
+//! `configs/xy2-word-to-xy2-word-odd.toml` (97.56 kHz, 41 ticks: 20 bits and one
+//! idle tick, 21 samples). The test reads the geometry from the baked configuration;
+//! nothing else in it depends on the head's rate (the read-backs and the test head
+//! follow the head's clock edges, the controller side runs at its own 100 kHz).
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use core::cell::Cell;
+    use core::sync::atomic::Ordering;
 
     use crate::e2e::checks::{
         assert_identity_axes, head_drivers_on, laser_gate_high, phase_end, FrameSeq, Xy2Periods,
@@ -21,7 +28,8 @@ mod tests {
     use embassy_stm32::{pac, peripherals, Peri};
     use embassy_time::{Duration, Instant};
     use shared::bridge::{AfterHold, StatusForm, Timing};
-    use shared::model::Alarms;
+    use shared::head_port::XY2_TICK_HZ;
+    use shared::model::{Alarms, Line};
     use shared::xy2::rx::Receiver as Xy2Receiver;
     use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
     use shared::xy2::tx::Transmitter as Xy2Tx;
@@ -30,6 +38,7 @@ mod tests {
     };
     use xy_bridge::app::{self, Executors};
     use xy_bridge::board::{self, Board};
+    use xy_bridge::channels::{BridgeSnapshot, BRIDGE_SNAPSHOT, SNAPSHOT_WANTED};
     use xy_bridge::config::{self, Roles};
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
@@ -165,8 +174,9 @@ mod tests {
                     while !(other + 2..other + 16).contains(&(pos() % HEAD_RING)) {
                         spins += 1;
                         // An NDTR read takes several core cycles: >= 40 us, well
-                        // beyond the 20 us the head's clock needs to get here
-                        // (a frame takes 10 us), and < 1 ms with interrupts off
+                        // beyond the 20.5 us the head's clock needs to get here
+                        // (a frame period takes 10 or 10.25 us), and < 1 ms with
+                        // interrupts off
                         // if it does not run.
                         if spins > 5_000 {
                             return false;
@@ -240,7 +250,9 @@ mod tests {
 
     /// The whole bridge through its own tasks for an XY2-100 controller and an
     /// XY2-100 head with STATUS words on both sides (axis map identity, Z from the
-    /// input, free-running at 100 kHz): `app`'s per-side functions spawn the
+    /// input, free-running at the baked rate: 100 kHz, 40 ticks per frame period, or
+    /// 97.56 kHz, 41 ticks, the odd geometry of `head_word`'s thinning, module
+    /// docs): `app`'s per-side functions spawn the
     /// supervisor (watchdog, laser gate), LEDs and statistics, `line::xy2_in` with
     /// the STATUS word towards the controller (`ctrl_word`, DMA2 S7 on TIM1 COM,
     /// PA0) and `bridge_wave_out` with the XY2-100 encoder and the head's STATUS
@@ -272,7 +284,10 @@ mod tests {
     /// else. The laser gate (PF13 pad): off before the input, on within 10 ms and
     /// without a gap until the head's alarm, off within 5 ms of it and while it
     /// lasts, on within 10 ms of its end and without a gap, off within 6 ms of the
-    /// input's end and for good.
+    /// input's end and for good. The head's words as `head_word` judged them: none
+    /// failing its check (the bridge's `Line::Status` counters, read from the
+    /// snapshot the statistics task asks for), so no word was sampled off its bits
+    /// anywhere in the run, not only the ones that reached the controller.
     ///
     /// Jumpers: source PE2 (CLK) -> PE7 and PB10, PE3 (SYNC) -> PG0, PE4 (X) ->
     /// PG1, PE9 (Y) -> PG2, PE10 (Z) -> PG3; STATUS towards the controller PA0 ->
@@ -292,7 +307,22 @@ mod tests {
         assert_eq!(config.controller.xy2.mode, Mode::Standard16);
         assert_eq!(config.head.xy2.mode, Mode::Standard16);
         assert_eq!(config.output.timing, Timing::FreeRunning);
-        assert_eq!(config.output.frame_rate_hz, 100_000);
+        // The head's frame period in output ticks, as `tasks/encode.rs` derives it:
+        // 40 at 100 kHz (20 STATUS samples a period) or 41 at 97.56 kHz (20 bits
+        // and an idle tick: 21 samples, the last of them on the idle tick), the two
+        // geometries of `head_word`'s thinning this test is reasoned for (at lower
+        // rates free-running would skip more input frames than `FrameSeq` allows).
+        let ticks = XY2_TICK_HZ / config.output.frame_rate_hz;
+        assert!(
+            matches!(ticks, 40 | 41),
+            "{} output ticks per frame period",
+            ticks
+        );
+        defmt::info!(
+            "head at {} Hz: {} ticks per frame period",
+            config.output.frame_rate_hz,
+            ticks
+        );
         assert_eq!(config.failsafe.after_hold, AfterHold::Park);
         assert_ne!(config.failsafe.status_timeout_us, 0);
         assert!(config.laser.off_on_head_alarm, "laser.off_on_head_alarm");
@@ -684,9 +714,12 @@ mod tests {
         )
         .await;
         drop(source);
+        // The bridge still runs (parking): its counters cover the whole run.
+        let status_faults = bridge_snapshot().await.counters.line(Line::Status);
         defmt::info!("head: {}", log);
         defmt::info!("controller STATUS: {}", ctrl);
         defmt::info!("gate: {}", gate);
+        defmt::info!("head STATUS faults in the bridge: {}", status_faults);
 
         assert!(
             !underrun.get(),
@@ -710,6 +743,13 @@ mod tests {
         log.head.check();
         assert_eq!(log.unknown, 0, "head periods that are no good frame sent");
         log.seq.check(N, recovery);
+        // The head's words as `head_word` thinned and decoded them: every one of a
+        // period that carried a frame passed its check.
+        assert_eq!(
+            status_faults.total(),
+            0,
+            "head STATUS words failing their check in head_word"
+        );
         // The STATUS words towards the controller: `ctrl_word`'s choice for the
         // head's words and the input, in order, none broken once the phase is in.
         let first_word = ctrl
@@ -753,6 +793,22 @@ mod tests {
         );
         assert_eq!(gate.late, 0, "gate on 6 ms after the input was lost");
         assert!(!laser_gate_high(), "gate on at the end");
+    }
+
+    /// The bridge's snapshot (its counters), asked for as the statistics task asks
+    /// for it. The statistics task asks once a second too and may take an answer
+    /// first (or reset it): then ask again, every millisecond for up to 100 ms
+    /// (the bridge answers after its current batch, ~0.25 ms). `try_take`, not
+    /// `wait`: two tasks waiting on one `Signal` would wake each other in turn.
+    async fn bridge_snapshot() -> BridgeSnapshot {
+        for _ in 0..100 {
+            SNAPSHOT_WANTED.store(true, Ordering::Relaxed);
+            embassy_time::Timer::after_millis(1).await;
+            if let Some(s) = BRIDGE_SNAPSHOT.try_take() {
+                return s;
+            }
+        }
+        panic!("the bridge gave no snapshot in 100 ms")
     }
 
     /// The slot that keeps the test head's DMA channel for the whole test.
