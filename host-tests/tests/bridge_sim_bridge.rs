@@ -647,16 +647,22 @@ fn head_status_reaches_the_controller() {
     );
 }
 
-/// An XY2-100 head's STATUS line sending `word` in every output frame period, in
-/// the geometry the bridge samples it: one sample per output bit (500 ns), the
-/// frame's first bit in sample 1 of each 20-sample period.
-fn xy2_status_word_line(word: xy2::StatusWord, periods: usize) -> Waveform {
+/// An XY2-100 head's STATUS line sending `word` in every output frame period of a
+/// head at `rate` Hz, as a head answers on the bridge's clock: bit k changes at the
+/// start of output tick 2k + 2 of its period (after bit k's CLK falling edge, tick
+/// 2k + 1, where the bridge read bit k - 1), so the bridge, sampling one per bit
+/// from the period's start (`tasks/head_word.rs`), finds the frame's first bit in
+/// sample 1 of the period; with an odd number of ticks per period (41 at 97.56 kHz)
+/// bit 19 changes on the idle tick.
+fn xy2_status_word_line(word: xy2::StatusWord, periods: usize, rate: u32) -> Waveform {
     let frame = word.to_frame(&xy2::LinkConfig::default());
+    let ticks = shared::head_port::XY2_TICK_HZ / rate;
+    let tick_ps = 1e12 / f64::from(rate) / f64::from(ticks);
     let mut s = Signal::new("status", false);
     for p in 0..periods {
-        for i in 0..20 {
-            let sample = (p * 20 + 1 + i) as u64;
-            s.push(sample * 500_000, frame >> (19 - i) & 1 != 0)
+        for i in 0..20u32 {
+            let tick = p as f64 * f64::from(ticks) + f64::from(2 * i + 2);
+            s.push((tick * tick_ps).round() as u64, frame >> (19 - i) & 1 != 0)
                 .unwrap();
         }
     }
@@ -689,6 +695,11 @@ fn xy2_status_words_at_controller(d: &Path) -> Vec<Result<xy2::StatusWord, xy2::
     words
 }
 
+/// The head's STATUS word at 100 kHz (40 output ticks per frame period, 20
+/// samples) and at 97.56 kHz (41 ticks: 20 bits and an idle tick, 21 samples, as
+/// the firmware's `head_word` thins them; before, bridge-sim sampled every two
+/// ticks across the periods and drifted half a bit a period there, so no word
+/// passed), from a 100 kHz controller.
 #[test]
 fn xy2_status_words_both_ways() {
     let d = dir("xy2_word");
@@ -698,35 +709,47 @@ fn xy2_status_words_both_ways() {
         temperature_ok: false,
         ..xy2::StatusWord::ALL_OK
     };
-    write_vcd_file(
-        &d.join("status.vcd"),
-        &xy2_status_word_line(hot, 400),
-        WriteTimescale::Ps,
-    )
-    .unwrap();
-    let cfg = config(
-        "xy2",
-        "xy2",
-        "[controller.xy2]\nstatus = \"word\"\n[head.xy2]\nstatus = \"word\"\n",
-    );
-    let o = bridge(&d, &cfg, "in.vcd", &["--head-status", "status.vcd"]);
-    assert!(
-        counter(&o.stderr, "head status received:") >= 390,
-        "{}",
-        o.stderr
-    );
-    assert_alarm_keeps_gate_off(&o, "temperature");
-    // The controller reads a valid status word in every frame after the first:
-    // INPUT_LOST (power bit cleared) until the link runs, then the head's
-    // over-temperature.
-    let words = xy2_status_words_at_controller(&d);
-    assert_eq!(words.len(), 400);
-    let words: Vec<xy2::StatusWord> = words[1..].iter().map(|w| w.unwrap()).collect();
-    assert!(!words[0].power_ok);
-    let running = words.iter().position(|w| w.power_ok).unwrap();
-    assert!((8..=12).contains(&running), "running from frame {running}");
-    for w in &words[running..] {
-        assert_eq!(*w, hot);
+    for rate in [100_000u32, 97_560] {
+        write_vcd_file(
+            &d.join("status.vcd"),
+            &xy2_status_word_line(hot, 400, rate),
+            WriteTimescale::Ps,
+        )
+        .unwrap();
+        let cfg = config(
+            "xy2",
+            "xy2",
+            &format!(
+                "[controller.xy2]\nstatus = \"word\"\n[head.xy2]\nstatus = \"word\"\n\
+                 [output]\nframe_rate_hz = {rate}\n"
+            ),
+        );
+        let o = bridge(&d, &cfg, "in.vcd", &["--head-status", "status.vcd"]);
+        // A word from every head period of the 4 ms input, less a few at its ends
+        // (390 of 400 at 100 kHz), none failing its check.
+        let want = 390 * u64::from(rate) / 100_000;
+        assert!(
+            counter(&o.stderr, "head status received:") >= want,
+            "{rate} Hz: {}",
+            o.stderr
+        );
+        assert_eq!(counter(&o.stderr, "items,"), 0, "{rate} Hz: {}", o.stderr);
+        assert_alarm_keeps_gate_off(&o, "temperature");
+        // The controller reads a valid status word in every frame after the first:
+        // INPUT_LOST (power bit cleared) until the link runs, then the head's
+        // over-temperature.
+        let words = xy2_status_words_at_controller(&d);
+        assert_eq!(words.len(), 400);
+        let words: Vec<xy2::StatusWord> = words[1..].iter().map(|w| w.unwrap()).collect();
+        assert!(!words[0].power_ok);
+        let running = words.iter().position(|w| w.power_ok).unwrap();
+        assert!(
+            (8..=12).contains(&running),
+            "{rate} Hz: running from frame {running}"
+        );
+        for w in &words[running..] {
+            assert_eq!(*w, hot, "{rate} Hz");
+        }
     }
 }
 

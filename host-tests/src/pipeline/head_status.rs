@@ -186,11 +186,14 @@ impl HeadStatusIn {
                     options.status_debounce,
                 )),
                 StatusForm::Word => {
-                    // The status-word sample geometry: one sample per output tick.
+                    // The status-word sample geometry: one sample per output bit,
+                    // counted from each frame period's start as the firmware thins
+                    // them (`tasks/head_word.rs`): `ceil(ticks / 2)` per period, so
+                    // an odd number of ticks keeps the sample after the idle tick.
                     let ticks = XY2_TICK_HZ / config.output.frame_rate_hz.max(1);
                     let rx = StatusWordReceiver::new(StatusWordConfig {
                         pin: 0,
-                        samples_per_period: u16::try_from(ticks / 2).unwrap_or(u16::MAX),
+                        samples_per_period: u16::try_from(ticks.div_ceil(2)).unwrap_or(u16::MAX),
                         offset: 1,
                         link: xy2::LinkConfig {
                             mode: h.xy2.mode,

@@ -333,18 +333,37 @@ fn status_steps(
                     "internal: an XY2-100 head without a BSRR output".to_owned(),
                 ));
             };
-            // One sample per output bit (two ticks), at the bit's sampling edge (CLK
-            // low, the second tick); bit 0 of the sample is STATUS.
-            let bit_ps = 2.0 * tick_ps;
-            let per_frame = (1e12 / rate as f64 / bit_ps).round().max(1.0) as usize;
-            let n = (until_ps as f64 / bit_ps).floor() as usize;
+            // One sample per output bit, counted from each frame period's start as
+            // the firmware thins them (`tasks/head_word.rs`): bit j's is taken at
+            // its sampling edge (CLK low, tick 2j + 1), `ceil(ticks / 2)` per
+            // period, so with an odd number of ticks (97.56 kHz: 41) the last one
+            // falls after the idle tick and the next period starts afresh. Uniform
+            // sampling every two ticks drifted half a bit per period there. Bit 0 of
+            // the sample is STATUS.
+            let ticks = (1e12 / rate as f64 / tick_ps).round().max(1.0) as usize;
+            let per_frame = ticks.div_ceil(2);
+            let period_ps = ticks as f64 * tick_ps;
+            let sample_ps = |i: usize| {
+                (i / per_frame) as f64 * period_ps + (2 * (i % per_frame) + 1) as f64 * tick_ps
+            };
+            // Samples whose tick ends by `until_ps`.
+            let n = (0..)
+                .take_while(|&i| sample_ps(i) + tick_ps <= until_ps as f64)
+                .count();
             let samples: Vec<u16> = (0..n)
-                .map(|j| u16::from(line.level_at(crate::line::ps((j as f64 + 0.5) * bit_ps))))
+                .map(|i| u16::from(line.level_at(crate::line::ps(sample_ps(i)))))
                 .collect();
+            // One step per frame period, at its end (a last partial one at the end
+            // of its last sample's tick).
             let mut i = 0;
             while i < n {
                 let to = (i + per_frame).min(n);
-                steps.push((ns_f(to as f64 * bit_ps), Step::Word(i..to)));
+                let end = if to - i == per_frame {
+                    (to / per_frame) as f64 * period_ps
+                } else {
+                    sample_ps(to - 1) + tick_ps
+                };
+                steps.push((ns_f(end), Step::Word(i..to)));
                 i = to;
             }
             Ok(Read {
