@@ -546,6 +546,7 @@ pub struct RingSteps {
 #[cfg(any(bridge_pairing = "hans_to_xy2", bridge_pairing = "hans_to_hans"))]
 impl RingSteps {
     /// A new look starts: the next frame is not compared with the one before.
+    #[cfg(bridge_pairing = "hans_to_hans")]
     pub fn new_look(&mut self) {
         self.last = None;
     }

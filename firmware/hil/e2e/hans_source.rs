@@ -120,7 +120,13 @@ pub(super) fn switch_ring(tx: &mut SerialTx<'_>, image: &[u8; RING_BYTES]) {
                 copy_slot(ring, image, (first + k) % RING_SLOTS);
             }
         });
-        while (tx.sending_slot() + RING_SLOTS - first) % RING_SLOTS < LEAD_SLOTS {}
+        // Two slot periods; a ring that stopped would hold interrupts off for
+        // good, so the wait is bounded (far beyond 20 us).
+        let mut spins = 0u32;
+        while (tx.sending_slot() + RING_SLOTS - first) % RING_SLOTS < LEAD_SLOTS {
+            spins += 1;
+            assert!(spins < 1_000_000, "the ring's DMA stands still");
+        }
         tx.update(|ring| {
             for k in 0..LEAD_SLOTS {
                 copy_slot(ring, image, (first + k) % RING_SLOTS);
