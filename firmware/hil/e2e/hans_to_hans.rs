@@ -322,7 +322,7 @@ mod tests {
 
         // The STATUS towards the controller: before the input, 50 ms into it, into
         // the head's alarm and after it, and 100 ms after the input stopped.
-        let status_ring = dma_ring!(".sram1", u16, 2 * STATUS_WORDS);
+        let ctrl_status_ring = dma_ring!(".sram1", u16, 2 * STATUS_WORDS);
         let mut looks: [StatusLook; 5] = Default::default();
         let status_run = async {
             let mut words = [0u16; STATUS_WORDS];
@@ -357,7 +357,7 @@ mod tests {
                     mosi4.reborrow(),
                     no_nss,
                     dma4.reborrow(),
-                    &mut *status_ring,
+                    &mut *ctrl_status_ring,
                     &mut words,
                     Duration::from_millis(50),
                 )
