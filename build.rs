@@ -14,7 +14,10 @@
 //!    `bridge_pairing = "<controller>_to_<head>"` (e.g. `"xy2_to_xy3"`): the
 //!    hardware-in-the-loop binary compiles each end-to-end test only into the image
 //!    whose pairing it is written for (`firmware/hil/e2e`).
-//! 2. Put `memory.x` on the linker path and add the Cortex-M link scripts.
+//! 2. Put `memory.x` on the linker path and add the Cortex-M link scripts. The HIL
+//!    test binary also links `hil_cold.x` ([`hil_cold_x`]): what only its tests
+//!    use stays out of ITCM, so its ITCM holds what the firmware image of the
+//!    baked pairing holds there.
 
 use std::{env, fs, path::PathBuf, process};
 
@@ -28,7 +31,8 @@ const DEFAULT_CONFIG: &str = "bridge.toml";
 
 fn main() {
     let out = PathBuf::from(env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    bake_config(&out);
+    let config = bake_config(&out);
+    fs::write(out.join("hil_cold.x"), hil_cold_x(&config)).expect("write OUT_DIR/hil_cold.x");
 
     fs::copy("memory.x", out.join("memory.x")).expect("copy memory.x to OUT_DIR");
     println!("cargo:rustc-link-search={}", out.display());
@@ -43,6 +47,10 @@ fn main() {
     // The HIL test binary (firmware/hil) links like the firmware, plus embedded-test's
     // script, which keeps the test table the probe-rs runner reads from the ELF.
     println!("cargo:rustc-link-arg-tests=--nmagic");
+    // Before link.x: lld hands an input section to the first output section whose
+    // pattern matches in the order it read them, so `hil_cold.x`'s win over
+    // `memory.x`'s `.itcm`.
+    println!("cargo:rustc-link-arg-tests=-Thil_cold.x");
     println!("cargo:rustc-link-arg-tests=-Tlink.x");
     println!("cargo:rustc-link-arg-tests=-Tdefmt.x");
     println!("cargo:rustc-link-arg-tests=-Tembedded-test.x");
@@ -83,8 +91,47 @@ fn emit_pairing_cfg(config: &Config) {
     );
 }
 
-/// Parses, validates and writes the configuration; exits with a message on any error.
-fn bake_config(out: &std::path::Path) {
+/// The HIL test binary's extra linker script: an output section `.hil_cold` in
+/// flash (after `.text`) that takes, before `memory.x`'s `.itcm` can, what only the
+/// tests use, so that the HIL image's ITCM holds the baked firmware's hot code and
+/// fits beside the two receivers of a HANS-100 -> HANS-100 image (README "Memory
+/// placement"):
+/// * the `hil` crate's own instances of hot generic code (the tests' closures
+///   given to `shared::hans::rx::HansRx::push`; v0 spells the crate `..._3hil`);
+/// * the XY2-100 / XY3-100 codec modules of the roles not baked: the bridge
+///   loops link only the baked receiver and encoder (`config::BAKED_ROLES`), so
+///   in this image only the driver-level tests call the others.
+fn hil_cold_x(config: &Config) -> String {
+    let (ctrl, head) = (config.controller.protocol, config.head.protocol);
+    let mut patterns = vec!["    *(.text._R*_3hil*)".to_string()];
+    for (module, baked) in [
+        ("6shared3xy22rx", ctrl == Protocol::Xy2),
+        ("6shared3xy22tx", head == Protocol::Xy2),
+        ("6shared3xy32rx", ctrl == Protocol::Xy3),
+        ("6shared3xy34step", ctrl == Protocol::Xy3),
+        ("6shared3xy32tx", head == Protocol::Xy3),
+    ] {
+        if !baked {
+            patterns.push(format!("    *(.text._R*{module}*)"));
+        }
+    }
+    let mut script = String::from(
+        "/* HIL test binary only, written by build.rs (`hil_cold_x`): what only the\n\
+         \x20* tests use, in flash. Linked before link.x, so these patterns win over\n\
+         \x20* memory.x's `.itcm`. */\n\
+         SECTIONS\n{\n  .hil_cold : ALIGN(4)\n  {\n",
+    );
+    for p in patterns {
+        script.push_str(&p);
+        script.push('\n');
+    }
+    script.push_str("  } > FLASH\n} INSERT AFTER .text;\n");
+    script
+}
+
+/// Parses, validates and writes the configuration; exits with a message on any
+/// error. Returns it.
+fn bake_config(out: &std::path::Path) -> Config {
     println!("cargo:rerun-if-env-changed={CONFIG_ENV}");
     let path = env::var_os(CONFIG_ENV)
         .map(PathBuf::from)
@@ -125,6 +172,7 @@ fn bake_config(out: &std::path::Path) {
     );
     fs::write(out.join("bridge_roles.rs"), roles).expect("write OUT_DIR/bridge_roles.rs");
     emit_pairing_cfg(&config);
+    config
 }
 
 /// Stops the build. Cargo prints a failed build script's stderr.

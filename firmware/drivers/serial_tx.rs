@@ -9,7 +9,8 @@
 //! one being sent ([`SerialTx::sending_slot`]).
 //!
 //! Register sequence (RM0433 §51 "Serial audio interface"):
-//! 1. Kernel + bus clock on, reset (RCC §8; SAI kernel = PLL2_P 100 MHz, board.rs).
+//! 1. Kernel + bus clock on, reset (RCC §8; SAI kernel = PLL2_P 100 MHz, board.rs),
+//!    unless the SAI's other sub-block runs (both share the enable and the reset).
 //! 2. CR1 with SAIEN = 0: MODE = master transmitter, PRTCFG = free protocol,
 //!    DS = 8 bits, LSBFIRST = 0 (MSB first), CKSTR = 0 (the pac calls it
 //!    FALLING_EDGE, the sampling edge: our data changes on the rising SCK edge, so a
@@ -46,12 +47,21 @@ use shared::hans::tx::LEAD_SLOTS;
 pub trait Instance: embassy_stm32::sai::Instance {
     /// Register block.
     const REGS: pac::sai::Sai;
+    /// Whether the SAI's clock enable is set (RCC_APB2ENR, RM0433 §8 "Reset and
+    /// clock control"): only then do its registers read back.
+    fn clock_on() -> bool;
 }
 impl Instance for peripherals::SAI1 {
     const REGS: pac::sai::Sai = pac::SAI1;
+    fn clock_on() -> bool {
+        pac::RCC.apb2enr().read().sai1en()
+    }
 }
 impl Instance for peripherals::SAI2 {
     const REGS: pac::sai::Sai = pac::SAI2;
+    fn clock_on() -> bool {
+        pac::RCC.apb2enr().read().sai2en()
+    }
 }
 
 /// Sub-block A or B with its register index.
@@ -91,8 +101,15 @@ impl<'a> SerialTx<'a> {
         let mut sd = Flex::new(sd);
         sd.set_as_af_unchecked(af, AfType::output(OutputType::PushPull, Speed::VeryHigh));
 
-        // Step 1.
-        rcc::enable_and_reset::<T>();
+        // Step 1. The two sub-blocks share the SAI's clock enable and reset (RCC;
+        // embassy keeps no count for SAIs): a block started beside a running one
+        // keeps it running and skips the reset, which would stop it. The firmware
+        // never runs both blocks of one SAI; the HIL tests play their sources on
+        // the block the firmware leaves free.
+        let other = T::REGS.ch(1 - S::INDEX);
+        if !(T::clock_on() && other.cr1().read().saien()) {
+            rcc::enable_and_reset::<T>();
+        }
         let ch = T::REGS.ch(S::INDEX);
         // Step 2.
         ch.cr1().modify(|w| {

@@ -54,6 +54,7 @@ const HIL_PAIRINGS: &[&str] = &[
     "configs/xy3-to-xy2.toml",
     "configs/xy2-word-to-xy2-word.toml",
     "configs/xy2-word-to-xy2-word-odd.toml",
+    "configs/hans-normal-to-hans.toml",
 ];
 /// The build script's variable naming the configuration to bake (`build.rs`).
 const CONFIG_VAR: &str = "XY_BRIDGE_CONFIG";

@@ -5,29 +5,28 @@
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use crate::e2e::checks::{
-        assert_identity_axes, assert_mux_on_waveform, head_drivers_on, laser_gate_high, phase_end,
-        GateWatch, Xy2Periods, HEAD_XY2_PINS,
+        assert_identity_axes, assert_mux_on_waveform, capture, head_drivers_on, laser_gate_high,
+        phase_end, GateWatch, RingSteps, StatusLook, Xy2Periods, HEAD_XY2_PINS,
+    };
+    use crate::e2e::hans_source::{
+        bad_burst, controller_rings, positions, BAD_AT, BAD_FOR, BAD_FRAME,
     };
     use embassy_futures::select::{select, Either};
     use embassy_stm32::gpio::{AnyPin, Level, Output, Speed};
     use embassy_stm32::peripherals::PG8;
     use embassy_stm32::{pac, peripherals, Peri};
-    use embassy_time::{with_timeout, Duration, Instant};
+    use embassy_time::{Duration, Instant};
     use shared::bridge::{AfterHold, Timing};
-    use shared::hans::frame::{read_slot, write_slot, Frame, FRAME_BITS, RING_BYTES, RING_SLOTS};
-    use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
-    use shared::hans::tx::LEAD_SLOTS;
-    use shared::hans::StatusReceiver;
-    use shared::model::{Alarms, FaultKind, HeadStatus};
+    use shared::hans::frame::{RING_BYTES, RING_SLOTS};
+    use shared::model::Alarms;
     use shared::xy2::rx::Receiver as Xy2Receiver;
     use shared::xy2::{LinkConfig, Mode};
     use xy_bridge::app::{self, Executors};
-    use xy_bridge::board::{self, Board, HansStatusInRes, HANS_FS_HZ};
+    use xy_bridge::board::{self, Board, HansStatusInRes};
     use xy_bridge::config::{self, Roles};
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::oversample_clock;
     use xy_bridge::drivers::serial_tx::SerialTx;
-    use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
     use xy_bridge::drivers::xy2_sampler::Xy2Sampler;
     use xy_bridge::tasks::Irqs;
 
@@ -36,66 +35,10 @@ mod tests {
         board::init()
     }
 
-    /// The ring slot that carries the frame with a flipped bit for [`BAD_FOR`],
-    /// [`BAD_AT`] into the run (once the link runs: in normal mode a check failure
-    /// breaks the recovery run, so a bad frame every lap would keep the link down).
-    const BAD_SLOT: usize = 5;
-    const BAD_AT: Duration = Duration::from_millis(100);
-    const BAD_FOR: Duration = Duration::from_millis(10);
-    /// The frame number whose corrupted copy is sent: no other slot carries it.
-    const BAD_FRAME: u32 = RING_SLOTS as u32;
     /// Samples per read of the head's XY2 output (25 frames of 20 bits).
     const CHUNK: usize = 500;
     /// How long the controller sends.
     const RUN: Duration = Duration::from_millis(300);
-
-    /// Head positions (X, Y, Z, 16 bits) of the frame in ring slot `slot`: none is
-    /// the park position's 0x8000 on X, and no two slots share an X.
-    fn positions(slot: u32) -> [u16; 3] {
-        [
-            (0x1000 + slot * 0x1357) as u16,
-            (0x2345 + slot * 0x0F0F) as u16,
-            (0xC000 - slot * 0x0777) as u16,
-        ]
-    }
-
-    /// The controller's frame in slot `slot`: each position MSB-aligned in its
-    /// 20-bit word (low four bits zero, so the 20 -> 16-bit resize is exact), DATA3
-    /// with extension code 0 (a Z position: `shared::hans::ext`).
-    fn frame_of(slot: u32) -> Frame {
-        let [x, y, z] = positions(slot).map(|v| u32::from(v) << 4);
-        // Every word is below 2^20.
-        Frame::new(x, y, z).unwrap()
-    }
-
-    /// Copies slot `slot`'s bits of `image` into `ring` (its first and last bytes
-    /// are shared with the neighbouring slots, which keep theirs).
-    fn copy_slot(ring: &mut [u8; RING_BYTES], image: &[u8; RING_BYTES], slot: usize) {
-        for bit in slot * FRAME_BITS..(slot + 1) * FRAME_BITS {
-            let mask = 0x80u8 >> (bit % 8);
-            ring[bit / 8] = ring[bit / 8] & !mask | image[bit / 8] & mask;
-        }
-    }
-
-    /// Runs `f` on the controller's ring with interrupts off, only while slot
-    /// `slot` is at least `LEAD_SLOTS` ahead of the one the DMA fetches and not the
-    /// one just behind it (so neither the DMA nor the SAI FIFO holds any of its
-    /// bits: `drivers::serial_tx`); returns whether it ran. A slot is then never
-    /// sent half old, half new.
-    fn update_ahead(
-        tx: &mut SerialTx<'_>,
-        slot: usize,
-        f: impl FnOnce(&mut [u8; RING_BYTES]),
-    ) -> bool {
-        cortex_m::interrupt::free(|_| {
-            let ahead = (slot + RING_SLOTS - tx.sending_slot()) % RING_SLOTS;
-            let safe = (LEAD_SLOTS..RING_SLOTS - 1).contains(&ahead);
-            if safe {
-                tx.update(f);
-            }
-            safe
-        })
-    }
 
     /// What the head received, checked period by period against the ring's frames.
     #[derive(Default, Debug, defmt::Format)]
@@ -105,67 +48,31 @@ mod tests {
         head: Xy2Periods,
         /// Periods that are neither a ring frame (translated) nor the park position.
         unknown: u32,
-        /// Frames seen: the same slot as the last one, a step forward of 1..=4
-        /// slots, a step of 5..=7 (back, or further than the bridge may skip).
-        frames: u32,
-        repeats: u32,
-        distinct: u32,
-        backwards: u32,
-        /// The frame with the flipped bit was seen.
-        bad_seen: bool,
-        /// Park periods; of them before the first frame; frames after a park.
-        park: u32,
-        park_before_first: u32,
-        frames_after_park: u32,
+        /// The ring slots of the frames, in order, and the park periods (one look:
+        /// the read-back is continuous).
+        steps: RingSteps,
     }
 
     /// One look at the HANS STATUS stream towards the controller (PA0): SPI6,
     /// clocked by fs on TIM3 CH2 (PC7, which this pairing leaves free), captures
-    /// 1024 words (41 frame periods) from a fresh start, decoded by `shared`'s
-    /// HANS-100 receiver (channel 1) as the controller would.
-    #[derive(Default, Debug, defmt::Format)]
-    struct StatusLook {
-        /// Frames decoded, frames failing their check.
-        frames: u32,
-        failed: u32,
-        /// The alarms the frames report (`StatusReceiver` over all of them).
-        alarms: u32,
-    }
-
+    /// 1024 words (41 frame periods) from a fresh start, decoded as the controller
+    /// would ([`StatusLook::of`]).
     async fn status_look(s: &mut HansStatusInRes, ring: &mut [u16]) -> StatusLook {
         let no_nss: Option<Peri<'_, PG8>> = None;
-        let mut rx = SpiSlaveRx::new(
+        let mut words = [0u16; 1024];
+        let captured = capture(
             s.spi.reborrow(),
             s.sck.reborrow(),
             s.mosi.reborrow(),
             no_nss,
             s.dma.reborrow(),
-            Irqs,
             ring,
+            &mut words,
+            Duration::from_millis(200),
         )
-        .unwrap();
-        let mut words = [0u16; 1024];
-        with_timeout(Duration::from_millis(200), rx.read_exact(&mut words))
-            .await
-            .unwrap()
-            .unwrap();
-        let mut hans_rx = HansRx::new(HANS_FS_HZ, HansMode::Normal { channel: 1 }).unwrap();
-        let mut receiver = StatusReceiver::new();
-        let mut status = HeadStatus::default();
-        let mut look = StatusLook::default();
-        hans_rx.push(&[&words], &mut |ev| match ev {
-            RxEvent::Frame(f) => {
-                look.frames += 1;
-                receiver.apply(&f, &mut status);
-            }
-            RxEvent::Fault {
-                kind: FaultKind::CheckFailed,
-                ..
-            } => look.failed += 1,
-            RxEvent::Fault { .. } => {}
-        });
-        look.alarms = status.alarms.0;
-        look
+        .await;
+        assert!(captured, "STATUS capture failed");
+        StatusLook::of(&words)
     }
 
     /// The whole bridge through its own tasks for a HANS-100 controller and an
@@ -233,25 +140,8 @@ mod tests {
         .health(true)
             == shared::xy2::Health::Ok;
 
-        // The controller's ring, and the same ring with `BAD_FRAME`'s pattern in
-        // `BAD_SLOT`, one bit flipped in the middle (inside a complement pair), as
-        // `hans_controller_loopback` flips it.
-        let mut ring_bytes = [0u8; RING_BYTES];
-        for slot in 0..RING_SLOTS {
-            write_slot(&mut ring_bytes, slot, &frame_of(slot as u32)).unwrap();
-        }
-        let mut ring_bad = ring_bytes;
-        write_slot(&mut ring_bad, BAD_SLOT, &frame_of(BAD_FRAME)).unwrap();
-        let flip = BAD_SLOT * FRAME_BITS + 60;
-        ring_bad[flip / 8] ^= 0x80 >> (flip % 8);
-        assert!(
-            read_slot(&ring_bad, BAD_SLOT).is_err(),
-            "the flipped frame passes"
-        );
-        assert!(
-            (0..RING_SLOTS as u32).all(|s| positions(s) != positions(BAD_FRAME)),
-            "BAD_FRAME"
-        );
+        // The controller's ring, and the same ring with the flipped frame.
+        let (ring_bytes, ring_bad) = controller_rings();
         let slot_of = |p: [u16; 3]| (0..RING_SLOTS as u32).find(|&s| positions(s) == p);
 
         let spawner = unsafe {
@@ -326,14 +216,7 @@ mod tests {
             phase.set(1);
             embassy_time::Timer::after(BAD_AT).await;
             // The bad frame into its slot, and the good one back after BAD_FOR.
-            for image in [&ring_bad, &ring_bytes] {
-                while !update_ahead(&mut controller, BAD_SLOT, |ring| {
-                    copy_slot(ring, image, BAD_SLOT)
-                }) {
-                    embassy_time::Timer::after_micros(10).await;
-                }
-                embassy_time::Timer::after(BAD_FOR).await;
-            }
+            bad_burst(&mut controller, &ring_bytes, &ring_bad).await;
             embassy_time::Timer::after(RUN - BAD_AT - BAD_FOR * 2).await;
             phase.set(2);
             controller.update(|buf| buf.fill(0));
@@ -385,7 +268,6 @@ mod tests {
         // end of the run within a chunk; if it never starts, the deadline ends it.
         let reader = async {
             let mut samples = [0u16; CHUNK];
-            let mut last: Option<u32> = None;
             while phase.get() < 3 {
                 if sampler.read_exact(&mut samples).await.is_err() {
                     overrun = true;
@@ -397,27 +279,14 @@ mod tests {
                         return;
                     };
                     if v == park {
-                        log.park += 1;
-                        log.park_before_first += u32::from(last.is_none());
-                        return;
-                    }
-                    if v == positions(BAD_FRAME) {
-                        log.bad_seen = true;
-                        return;
-                    }
-                    let Some(slot) = slot_of(v) else {
+                        log.steps.park();
+                    } else if v == positions(BAD_FRAME) {
+                        log.steps.bad();
+                    } else if let Some(slot) = slot_of(v) {
+                        log.steps.frame(slot);
+                    } else {
                         log.unknown += 1;
-                        return;
-                    };
-                    log.frames += 1;
-                    log.frames_after_park += u32::from(log.park > 0);
-
-                    match last.map(|l| (slot + RING_SLOTS as u32 - l) % RING_SLOTS as u32) {
-                        Some(0) => log.repeats += 1,
-                        Some(1..=4) | None => log.distinct += 1,
-                        Some(_) => log.backwards += 1,
                     }
-                    last = Some(slot);
                 });
             }
         };
@@ -441,21 +310,10 @@ mod tests {
         // The head: what it got, in order, translated, never the flipped frame.
         log.head.check();
         assert_eq!(log.unknown, 0, "head periods that are no frame sent");
-        assert!(
-            !log.bad_seen,
-            "the frame with a flipped bit reached the head"
-        );
-        assert_eq!(log.backwards, 0, "frames out of order");
-        assert_eq!(log.park_before_first, 0, "park before the first frame");
-        assert_eq!(log.frames_after_park, 0, "frames after the park");
         // 100 kHz input for RUN, less the recovery run (`failsafe.recovery_frames`).
         let input_frames = (RUN.as_micros() / 10) as u32;
-        assert!(
-            log.distinct >= input_frames.saturating_sub(recovery) * 6 / 10,
-            "{} distinct frames",
-            log.distinct
-        );
-        assert!(log.park >= 1000, "{} park periods", log.park);
+        log.steps
+            .check(input_frames.saturating_sub(recovery) * 6 / 10, 1000);
         // The laser gate.
         gate.check();
         assert!(!laser_gate_high(), "gate on at the end");
@@ -463,14 +321,7 @@ mod tests {
         // lost input reported (as a communication alarm: `hans::neutral`) before
         // and after the input, not while it runs.
         for (look, lost) in looks.iter().zip([true, false, true]) {
-            assert!(look.frames >= 28, "STATUS: {} frames", look.frames);
-            assert_eq!(look.failed, 0, "STATUS frames failing their check");
-            assert_eq!(
-                Alarms(look.alarms).contains(Alarms::COMMUNICATION),
-                lost,
-                "STATUS alarms {:#x}",
-                look.alarms
-            );
+            look.check(Alarms::COMMUNICATION, lost);
         }
     }
 }

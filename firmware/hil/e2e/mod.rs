@@ -4,6 +4,10 @@
 //! baked configuration (README "Hardware-in-the-loop self-tests").
 
 mod checks;
+#[cfg(any(bridge_pairing = "hans_to_xy2", bridge_pairing = "hans_to_hans"))]
+mod hans_source;
+#[cfg(bridge_pairing = "hans_to_hans")]
+mod hans_to_hans;
 #[cfg(bridge_pairing = "hans_to_xy2")]
 mod hans_to_xy2;
 #[cfg(any(

@@ -3,12 +3,12 @@
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
-    use crate::e2e::checks::{assert_identity_axes, laser_gate_high, phase_end};
+    use crate::e2e::checks::{assert_identity_axes, capture, laser_gate_high, phase_end};
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
     use embassy_stm32::peripherals::PA4;
     use embassy_stm32::Peri;
-    use embassy_time::{with_timeout, Duration, Instant};
+    use embassy_time::{Duration, Instant};
     use shared::bridge::AfterHold;
     use shared::hans::frame::{write_slot, Frame, RING_BYTES, RING_SLOTS};
     use shared::hans::rx::{HansRx, Mode as HansMode, RxEvent};
@@ -24,7 +24,6 @@ mod tests {
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::oversample_clock;
     use xy_bridge::drivers::serial_tx::SerialTx;
-    use xy_bridge::drivers::spi_slave_rx::SpiSlaveRx;
     use xy_bridge::tasks::Irqs;
 
     #[init]
@@ -278,20 +277,18 @@ mod tests {
             while phase.get() < 3 {
                 let before = phase.get() == 0;
                 let no_nss: Option<Peri<'_, PA4>> = None;
-                let mut rx = SpiSlaveRx::new(
+                let captured = capture(
                     spi.reborrow(),
                     sck.reborrow(),
                     mosi.reborrow(),
                     no_nss,
                     dma.reborrow(),
-                    Irqs,
                     &mut *look_ring,
+                    &mut words,
+                    Duration::from_millis(50),
                 )
-                .unwrap();
-                let captured =
-                    with_timeout(Duration::from_millis(50), rx.read_exact(&mut words)).await;
-                drop(rx);
-                if !matches!(captured, Ok(Ok(()))) {
+                .await;
+                if !captured {
                     log.capture_errors += 1;
                     continue;
                 }

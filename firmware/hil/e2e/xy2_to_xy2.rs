@@ -15,8 +15,8 @@ mod tests {
     use core::sync::atomic::Ordering;
 
     use crate::e2e::checks::{
-        assert_identity_axes, head_drivers_on, laser_gate_high, phase_end, FrameSeq, Xy2Periods,
-        HEAD_XY2_PINS,
+        assert_identity_axes, head_drivers_on, laser_gate_high, phase_end, AlarmGateWatch,
+        FrameSeq, Xy2Periods, HEAD_XY2_PINS,
     };
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
@@ -232,20 +232,6 @@ mod tests {
         unexpected: u32,
         /// Frame index (controller frame) of the first word.
         first_at: Option<u32>,
-    }
-
-    /// The gate every 100 us, per phase (set by the source and the test head).
-    #[derive(Default, Debug, defmt::Format)]
-    struct Gate {
-        before: u32,
-        on_after_us: Option<u64>,
-        drops: u32,
-        alarm_late: u32,
-        alarm_samples: u32,
-        on_again_after_us: Option<u64>,
-        drops_again: u32,
-        late: u32,
-        samples_after: u32,
     }
 
     /// The whole bridge through its own tasks for an XY2-100 controller and an
@@ -559,42 +545,21 @@ mod tests {
             switched.set(done);
         };
 
-        let mut gate = Gate::default();
+        // The gate every 100 us, per phase (set by the source and the test head).
+        let mut gate = AlarmGateWatch::default();
         let gate_sampler = async {
             loop {
                 let g = laser_gate_high();
-                match phase.get() {
-                    0 => gate.before += u32::from(g),
-                    1 => {
-                        let t = input_at.get().elapsed().as_micros();
-                        match (gate.on_after_us, g) {
-                            (None, true) => gate.on_after_us = Some(t),
-                            (Some(_), false) => gate.drops += 1,
-                            _ => {}
-                        }
-                    }
-                    2 => {
-                        if alarm_at.get().elapsed() > Duration::from_millis(5) {
-                            gate.alarm_samples += 1;
-                            gate.alarm_late += u32::from(g);
-                        }
-                    }
-                    3 => {
-                        let t = clear_at.get().elapsed().as_micros();
-                        match (gate.on_again_after_us, g) {
-                            (None, true) => gate.on_again_after_us = Some(t),
-                            (Some(_), false) => gate.drops_again += 1,
-                            _ => {}
-                        }
-                    }
-                    4 => {
-                        if tail_at.get().elapsed() > Duration::from_millis(6) {
-                            gate.samples_after += 1;
-                            gate.late += u32::from(g);
-                        }
-                    }
+                let p = phase.get();
+                let since = match p {
+                    0 => Duration::from_ticks(0),
+                    1 => input_at.get().elapsed(),
+                    2 => alarm_at.get().elapsed(),
+                    3 => clear_at.get().elapsed(),
+                    4 => tail_at.get().elapsed(),
                     _ => break,
-                }
+                };
+                gate.sample(p, g, since);
                 embassy_time::Timer::after_micros(100).await;
             }
         };
@@ -773,25 +738,7 @@ mod tests {
         assert!(ok_again >= 5_000, "{} OK words after the alarm", ok_again);
         assert!(tail >= 500, "{} input-lost words in the tail", tail);
         // The laser gate.
-        assert_eq!(gate.before, 0, "gate on before the input");
-        let on = gate.on_after_us.expect("gate never on");
-        assert!(on < 10_000, "gate on {} us after the input", on);
-        assert_eq!(gate.drops, 0, "gate off while the input runs");
-        assert!(
-            gate.alarm_samples > 500,
-            "{} alarm samples",
-            gate.alarm_samples
-        );
-        assert_eq!(gate.alarm_late, 0, "gate on 5 ms into the head's alarm");
-        let on = gate.on_again_after_us.expect("gate not on after the alarm");
-        assert!(on < 10_000, "gate on {} us after the alarm", on);
-        assert_eq!(gate.drops_again, 0, "gate off after the alarm");
-        assert!(
-            gate.samples_after > 1000,
-            "{} samples after the input",
-            gate.samples_after
-        );
-        assert_eq!(gate.late, 0, "gate on 6 ms after the input was lost");
+        gate.check(500, 1000);
         assert!(!laser_gate_high(), "gate on at the end");
     }
 
