@@ -6,10 +6,10 @@
 //! the SPIs of a new session one after the other, then lets the clock in (low), so
 //! that every line counts from the same edge. On the NUCLEO the source's CLK pin
 //! (PE3) is wired straight to the SCK pins. Here an interrupt on PF14's own edges
-//! (EXTI line 14, port F: the pad's input stage stays on in output mode, RM0433
-//! "GPIO functional description", and EXTI works on any pin not in analog mode,
-//! §20) switches PE3 to an input while OE# is high and back to an output while it
-//! is low. As an input PE3 drives nothing and the pull-downs (its own and the SPI
+//! (EXTI line 14 routed from port F, §20: the pad's input stage, which feeds the
+//! EXTI multiplexer, stays on in output mode, RM0433 "GPIO functional
+//! description"; only analog mode turns it off) switches PE3 to an input while
+//! OE# is high and back to an output while it is low. As an input PE3 drives nothing and the pull-downs (its own and the SPI
 //! SCK pins', `spi_slave_rx`) hold the bus low, as the buffer's off state and the
 //! board's pull-downs do; the source's DMA keeps writing PE3's output register, so
 //! the clock comes back at the source's current level, as through the buffer.
