@@ -61,6 +61,15 @@ bind_interrupts!(
     }
 );
 
+/// Input halves lost since boot (`Stats::input_overruns`: an SPI or DMA ring
+/// overrun, or a half the bridge's queue had no room for). Read-only, for the
+/// hardware-in-the-loop tests: an XY3-100 input restarts its session after every
+/// overrun of a line, so a test that sees a restart and no overrun knows the bridge
+/// asked for it (`XY3_RESYNC`, lines out of step).
+pub fn input_overruns() -> u32 {
+    STATS.input_overruns.load(Ordering::Relaxed)
+}
+
 /// Watchdog timeout. The IWDG runs from the 32 kHz LSI, independent of the main clocks,
 /// so it also catches a dead PLL. 250 ms is long against the 50 ms feed period (a feed
 /// may be late by a few long critical sections or a defmt burst) and short enough that

@@ -49,6 +49,10 @@ pub struct FrameSeq {
     pub repeats: u32,
     pub backwards: u32,
     pub max_step: u32,
+    /// Steps of more than 4 frames (an outage the head held across), and the last
+    /// one as (the frame before, the frame after).
+    pub big_steps: u32,
+    pub gap: Option<(u32, u32)>,
     /// The frame with the flipped parity bit was seen.
     pub bad_seen: bool,
     /// Park periods; of them before the first frame; frames after a park.
@@ -81,6 +85,10 @@ impl FrameSeq {
             Some(last) => {
                 self.distinct += 1;
                 self.max_step = self.max_step.max(k - last);
+                if k - last > 4 {
+                    self.big_steps += 1;
+                    self.gap = Some((last, k));
+                }
             }
             None => self.distinct += 1,
         }
@@ -96,6 +104,13 @@ impl FrameSeq {
     /// slots that drains a half of 25 frames skips 5: ~80 % expected, README
     /// "Added latency"); at least 1000 park periods at the end.
     pub fn check(&self, n: u32, recovery: u32) {
+        self.check_outages(n, recovery, 0);
+    }
+
+    /// [`Self::check`] for a run in which the head held across `outages` known
+    /// input outages: exactly that many steps of more than 4 frames (the caller
+    /// checks where [`Self::gap`] lies), all the others of at most 4.
+    pub fn check_outages(&self, n: u32, recovery: u32, outages: u32) {
         assert!(
             !self.bad_seen,
             "the frame with a flipped parity bit reached the head"
@@ -114,7 +129,11 @@ impl FrameSeq {
             "last frame {:?}",
             self.last
         );
-        assert!(self.max_step <= 4, "a step of {} frames", self.max_step);
+        assert_eq!(
+            self.big_steps, outages,
+            "steps of more than 4 frames (the largest {}, the last {:?})",
+            self.max_step, self.gap
+        );
         assert!(
             self.distinct >= (n - recovery) * 6 / 10,
             "{} distinct frames",

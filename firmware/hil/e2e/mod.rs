@@ -10,6 +10,8 @@ mod hans_source;
 mod hans_to_hans;
 #[cfg(bridge_pairing = "hans_to_xy2")]
 mod hans_to_xy2;
+#[cfg(bridge_pairing = "xy3_to_xy2")]
+mod sck_gate;
 #[cfg(any(
     bridge_pairing = "xy2_to_xy3",
     bridge_pairing = "xy2_to_hans",
