@@ -6,6 +6,7 @@
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
     use core::cell::Cell;
+    use core::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 
     use crate::e2e::checks::{
         assert_identity_axes, head_drivers_on, laser_gate_high, phase_end, FrameSeq, GateWatch,
@@ -15,6 +16,8 @@ mod tests {
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use embassy_futures::select::{select, Either};
     use embassy_stm32::gpio::{AnyPin, Input, Level, Output, Speed};
+    use embassy_stm32::interrupt::typelevel::{Handler, Interrupt, CEC};
+    use embassy_stm32::interrupt::Priority;
     use embassy_stm32::{bind_interrupts, pac, peripherals, Peri};
     use embassy_time::{Duration, Instant};
     use shared::bridge::{AfterHold, Config, Timing};
@@ -32,9 +35,11 @@ mod tests {
     use xy_bridge::tasks::{self, Irqs};
 
     bind_interrupts!(
-        /// PF14's edges for the emulated SCK-bus buffer (`e2e::sck_gate`).
+        /// PF14's edges for the emulated SCK-bus buffer (`e2e::sck_gate`), and the
+        /// overrun test's stall (CEC: unused on this board).
         struct GateIrq {
             EXTI15_10 => SckGateHandler;
+            CEC => StallHandler;
         }
     );
 
@@ -982,6 +987,347 @@ mod tests {
             "first frame {} after the outage (healed at {}, expected {}..{})",
             first,
             heal,
+            lo,
+            hi
+        );
+        // The laser gate.
+        watch.check();
+        outage.check(off_us, back_us);
+        assert!(!laser_gate_high(), "gate on at the end");
+    }
+
+    /// The overrun test's source: frames sent (150 ms, room for the stall's
+    /// attempts from 40 ms in).
+    const OVERRUN_N: u32 = 15_000;
+    /// The stall (us): a busy loop in the CEC interrupt at P5, above the line
+    /// executor (P6, `app::LINE_PRIORITY`) and below the DMA handlers (P0), so the
+    /// DMA transfer-complete counts that embassy's rings detect a lap by stay exact
+    /// (a critical section would merge two laps' interrupts into one and could hide
+    /// the overrun it is meant to cause).
+    const STALL_US: u64 = 300;
+    /// XY3-100 input: line X's ring (`line::xy3_in`, two halves of
+    /// `channels::XY3_HALF` bytes) on DMA1 stream 0, filled at 3 bytes a frame
+    /// period: 0.3 bytes/us at 100 kHz.
+    const X_RING: u16 = 2 * xy_bridge::channels::XY3_HALF as u16;
+    /// The X ring's fill, within its half, at which the stall may start: with
+    /// [`STALL_US`] more bytes the DMA passes the read position (`xy3_in` reads each
+    /// half at once, so its read position is the current half's start), an overrun
+    /// (embassy: more than a ring written unread) whatever the pend latency.
+    const U_LO: u16 = 48;
+    /// The head output's ring (`bridge::bridge_wave_out`: two batches of
+    /// `WAVE_BATCH` = 1000 words, 25 XY2-100 frames of 40 ticks at 4 MHz, 250 us)
+    /// on DMA2 stream 1, and its words per microsecond.
+    const OUT_RING: u16 = 2000;
+    const OUT_WORDS_PER_US: u16 = 4;
+    /// The output half's elapsed time at which the stall may start: from
+    /// `E_MIN_US` the bridge has written the half that just freed (it runs before
+    /// thread mode does), and up to `E_MAX_US` the written half outlasts the stall
+    /// and the bridge's next write (500 - 150 = 350 us of queued words against
+    /// 300 + ~50 us), so the head never underruns (which would replay the ring's
+    /// stale batches: frames going back, which the head check counts).
+    const E_MIN_US: u16 = 10;
+    const E_MAX_US: u16 = 150;
+    /// Attempts at meeting both windows (a poll of `POLL_US` each, from a start
+    /// stepped through the input's and the output's phases) and the poll's length,
+    /// short enough that with the stall thread mode is held at most 360 us (the
+    /// source's ring holds at least a 500 us half, the read-back's 1 ms).
+    const STALL_ATTEMPTS: u32 = 50;
+    const POLL_US: u64 = 60;
+    /// `line::xy3_in`'s wait after a failed session before the next (1 ms).
+    const RESTART_WAIT_US: u64 = 1_000;
+
+    /// `embassy_time` microseconds (low 32 bits) at the stall's start, and whether
+    /// it ran.
+    static STALL_AT_US: AtomicU32 = AtomicU32::new(0);
+    static STALLED: AtomicBool = AtomicBool::new(false);
+
+    /// The CEC interrupt: one busy loop of [`STALL_US`].
+    struct StallHandler;
+
+    impl Handler<CEC> for StallHandler {
+        unsafe fn on_interrupt() {
+            let t0 = Instant::now();
+            STALL_AT_US.store(t0.as_micros() as u32, Ordering::Relaxed);
+            while t0.elapsed() < Duration::from_micros(STALL_US) {}
+            STALLED.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// Where the stall starts: line X's fill within its half (bytes) and the head
+    /// output's time into its half (us).
+    #[derive(Clone, Copy, Debug, defmt::Format)]
+    struct StallPoint {
+        x_fill: u16,
+        out_us: u16,
+        attempt: u32,
+    }
+
+    /// Polls both DMA positions for up to [`POLL_US`] and, inside one critical
+    /// section with the check (nothing at P6 can run between), pends the stall once
+    /// both are in their windows.
+    fn try_stall(attempt: u32) -> Option<StallPoint> {
+        let end = Instant::now() + Duration::from_micros(POLL_US);
+        while Instant::now() < end {
+            let hit = cortex_m::interrupt::free(|_| {
+                let x = pac::DMA1.st(0).ndtr().read().ndt();
+                let o = pac::DMA2.st(1).ndtr().read().ndt();
+                let x_fill = (X_RING - x) % X_RING % (X_RING / 2);
+                let out_us = (OUT_RING - o) % OUT_RING % (OUT_RING / 2) / OUT_WORDS_PER_US;
+                let ok = x_fill >= U_LO && (E_MIN_US..=E_MAX_US).contains(&out_us);
+                if ok {
+                    CEC::pend();
+                }
+                ok.then_some(StallPoint {
+                    x_fill,
+                    out_us,
+                    attempt,
+                })
+            });
+            if hit.is_some() {
+                return hit;
+            }
+        }
+        None
+    }
+
+    /// An XY3-100 input session restart after a real SPI DMA ring overrun while
+    /// the controller's clock runs, through the firmware's tasks (spawned as in
+    /// `bridge_tasks_xy3_to_xy2_end_to_end`, with its source, wiring and head
+    /// read-back, and the emulated SCK-bus buffer of
+    /// `bridge_tasks_xy3_to_xy2_restart_under_running_clock`). The source plays
+    /// 15 000 frames in step; from 40 ms in, the test stalls the line executor for
+    /// [`STALL_US`] with a P5 busy loop (`StallHandler`). The line executor runs
+    /// both `line::xy3_in` and `bridge_wave_out` (`app::controller_xy3`,
+    /// `app::head_wave`), so a stall that laps the input's 128-byte rings (427 us)
+    /// starves the output as well, whose ring holds 500 us: at an arbitrary moment
+    /// only 250..500 us are queued, and an output underrun replays the ring's
+    /// stale batches at the head. So the stall starts where both are known
+    /// ([`try_stall`]): line X at least [`U_LO`] bytes into its half (300 us more
+    /// lap the ring: overrun certain) and the output 10..150 us into its half (the
+    /// next batch is written, 350 us or more queued: no underrun). The X read then
+    /// returns the overrun, `xy3_in` counts it, waits 1 ms and starts a new session
+    /// behind the buffer.
+    ///
+    /// Checks: the stall ran (within 50 attempts); exactly one input overrun
+    /// (`tasks::input_overruns`: the X ring's, and no input half lost otherwise);
+    /// one restart (two closes and opens of the emulated buffer, its own checks),
+    /// closed 1 ms + the stall after it started (+ a batch and the margin); the
+    /// head as in the end-to-end test (every period decodes, a frame sent or park,
+    /// none made from other bytes, in order: a replay of stale batches would go
+    /// back, park only after the last frame) with exactly one outage, the first
+    /// frame after it at least the stall, the restart wait, `LOCK_PERIODS` and the
+    /// recovery run after the last before it, and at most that plus what the
+    /// pacing, the unread half and the margins add; the laser gate off before the
+    /// input, on within 10 ms and until the stall, off once within
+    /// `input_timeout_us` + two batches of the stall (for at least 1 ms), back on
+    /// only after the new session opened and within the lock and recovery run
+    /// of it, on until the input stops, off within 6 ms after.
+    ///
+    /// Jumpers: those of `bridge_tasks_xy3_to_xy2_end_to_end` (the backchannel
+    /// one unused); none for the emulated buffer.
+    #[test]
+    #[timeout(20)]
+    async fn bridge_tasks_xy3_to_xy2_restart_after_overrun(board: Board) {
+        let b = baked(OVERRUN_N);
+        let recovery = b.recovery;
+        let f = b.config.failsafe;
+        let frame_us = 1_000_000 / u64::from(b.config.output.frame_rate_hz);
+        assert_eq!(frame_us, 10, "the windows are written for 100 kHz");
+        let xy3_half_us = (xy3::rx::WINDOW as u64 / 2 * frame_us).div_ceil(3);
+        let half_frames = (xy3::rx::WINDOW as u64 / 2).div_ceil(3);
+        let lock = u64::from(xy3::rx::LOCK_PERIODS);
+        // The windows as designed: the stall laps X's ring from the lowest fill.
+        assert!(
+            u64::from(U_LO) + STALL_US * 3 / frame_us > u64::from(X_RING),
+            "the stall does not lap the input ring"
+        );
+        assert!(
+            u64::from(E_MAX_US) + STALL_US + BATCH_US / 5 < 2 * BATCH_US,
+            "the stall could underrun the head output"
+        );
+        // The gate goes off `input_timeout_us` after the last valid frame (before
+        // the stall), at a batch; back on once the new session's first periods
+        // lock, the recovery run passes, their half completes and a batch drains
+        // it.
+        let off_us = u64::from(f.input_timeout_us).max(STALL_US)
+            + 2 * BATCH_US
+            + SAMPLE_US
+            + MARGIN_US;
+        let back_us = (lock + 2 + u64::from(recovery)) * frame_us
+            + xy3_half_us
+            + 2 * BATCH_US
+            + SAMPLE_US
+            + MARGIN_US;
+        let outage_us = STALL_US + RESTART_WAIT_US + back_us;
+        assert!(
+            u64::from(f.input_timeout_us) + u64::from(f.hold_us) > outage_us,
+            "failsafe.hold_us shorter than the outage"
+        );
+
+        let spawner = current_spawner().await;
+        let (fw, hb, x) = Firmware::take(board);
+        let _head_status = head_status_ok(&b);
+        let (tx, idle, mut source) = start_source(hb.tx_dma, &b);
+        let gate = SckGate::arm(GateIrq);
+        STALLED.store(false, Ordering::Relaxed);
+        CEC::set_priority(Priority::P5);
+        CEC::unpend();
+        // SAFETY: the handler bound for CEC is `StallHandler`, which only waits
+        // and writes its two atomics.
+        unsafe { CEC::enable() };
+        fw.spawn(spawner, &b);
+        let mut head = head_read_back(x, &b).await;
+
+        // Phases: 0 before the input, 1 while it runs in step, 2 once the stall
+        // ran, 3 once the last frame is queued (`stop_at`: once it played), 4 done.
+        let phase = Cell::new(0u8);
+        let input_at = Cell::new(Instant::now());
+        let stall_at = Cell::new(Instant::now());
+        let open_at = Cell::new(None::<Instant>);
+        let stop_at = Cell::new(None);
+        let underrun = Cell::new(false);
+        let overruns_at_input = Cell::new(0u32);
+        let point = Cell::new(None::<StallPoint>);
+
+        let source_run = async {
+            embassy_time::Timer::after_millis(30).await;
+            let mut half = [0u32; SRC_FRAMES * SRC_TPF];
+            for h in 0..OVERRUN_N / SRC_FRAMES as u32 {
+                for (i, slot) in half.chunks_exact_mut(SRC_TPF).enumerate() {
+                    let [x, y, z] = wire_words(h * SRC_FRAMES as u32 + i as u32);
+                    tx.encode_words([x, y, z, 0, 0], slot).unwrap();
+                }
+                if !source.write(&half).await {
+                    underrun.set(true);
+                }
+                if h == 0 {
+                    input_at.set(Instant::now());
+                    overruns_at_input.set(tasks::input_overruns());
+                    phase.set(1);
+                }
+            }
+            phase.set(3);
+            half.fill(idle);
+            for _ in 0..2 {
+                if !source.write(&half).await {
+                    underrun.set(true);
+                }
+            }
+            stop_at.set(Some(Instant::now()));
+            embassy_time::Timer::after_millis(300).await;
+            phase.set(4);
+        };
+
+        // The stall, from 40 ms into the input (the gate is on by 10 ms), its
+        // polls started 37 us further into the phases each attempt.
+        let stall = async {
+            while phase.get() < 1 || input_at.get().elapsed() < Duration::from_millis(40) {
+                embassy_time::Timer::after_millis(1).await;
+            }
+            for attempt in 0..STALL_ATTEMPTS {
+                embassy_time::Timer::after_micros(400 + 37 * u64::from(attempt % 7)).await;
+                if let Some(p) = try_stall(attempt) {
+                    // The stall ran before this line (P5 over thread mode).
+                    point.set(Some(p));
+                    stall_at.set(Instant::from_micros(u64::from(
+                        STALL_AT_US.load(Ordering::Relaxed),
+                    )));
+                    phase.set(2);
+                    return;
+                }
+            }
+        };
+
+        let mut watch = GateWatch::default();
+        let mut outage = Outage::default();
+        let gate_sampler = async {
+            loop {
+                let g = laser_gate_high();
+                let p = phase.get();
+                let since_input = input_at.get().elapsed();
+                let since_stop = stop_at.get().map(|t: Instant| t.elapsed());
+                match p {
+                    0 | 1 => watch.sample(p, g, since_input, since_stop),
+                    2 => {
+                        if open_at.get().is_none() && gate.counts().opens >= 2 {
+                            open_at.set(Some(Instant::now()));
+                        }
+                        let since_open = open_at.get().map(|t| t.elapsed());
+                        outage.sample(g, stall_at.get().elapsed(), since_open);
+                    }
+                    3 => watch.sample(2, g, since_input, since_stop),
+                    _ => break,
+                }
+                embassy_time::Timer::after_micros(100).await;
+            }
+        };
+
+        let mut log = HeadLog::default();
+        let reader = read_head(
+            &mut head,
+            &phase,
+            4,
+            (OVERRUN_N, b.park, None),
+            &mut log,
+            |_, _| false,
+        );
+        let (_, _, _, reading) =
+            embassy_futures::join::join4(source_run, stall, gate_sampler, reader).await;
+        drop(source);
+        CEC::disable();
+        let counts = gate.counts();
+        let overruns = tasks::input_overruns().wrapping_sub(overruns_at_input.get());
+        let close_after_us = counts
+            .closed_at_us
+            .wrapping_sub(STALL_AT_US.load(Ordering::Relaxed));
+        defmt::info!("head: {}", log);
+        defmt::info!("gate: {}; outage: {}", watch, outage);
+        defmt::info!(
+            "stall at {}: sck gate {}, closed {} us after the stall's start; input overruns {}",
+            point.get(),
+            counts,
+            close_after_us,
+            overruns
+        );
+
+        assert!(
+            !underrun.get(),
+            "the source's DMA ran out of words (test bench too slow)"
+        );
+        reading.check();
+        assert!(point.get().is_some(), "no stall point in {} attempts", STALL_ATTEMPTS);
+        assert!(STALLED.load(Ordering::Relaxed), "the stall never ran");
+        // The overrun and its restart.
+        assert_eq!(overruns, 1, "input overruns (the stall's X ring lap)");
+        counts.check();
+        assert_eq!(counts.closes, 2, "SCK-bus buffer closes (one restart)");
+        assert_eq!(counts.opens, 2, "sessions in all (one restart)");
+        assert!(
+            (STALL_US + RESTART_WAIT_US..=STALL_US + RESTART_WAIT_US + BATCH_US + MARGIN_US)
+                .contains(&u64::from(close_after_us)),
+            "restart {} us after the stall's start",
+            close_after_us
+        );
+        // The head: every period a frame sent or park, in order (no stale batch
+        // replayed), across one outage that the hold spans.
+        log.head.check();
+        assert_eq!(log.unknown, 0, "head periods that are no frame sent");
+        log.seq.check_outages(OVERRUN_N, recovery, 1);
+        let (last, first) = log.seq.gap.expect("no outage");
+        let lost = u64::from(first - last);
+        let lo = (STALL_US + RESTART_WAIT_US) / frame_us + lock + u64::from(recovery) - 2;
+        let hi = (STALL_US + RESTART_WAIT_US + 2 * BATCH_US + MARGIN_US) / frame_us
+            + 2 * half_frames
+            + u64::from(X_RING / 2) / 3
+            + lock
+            + u64::from(recovery)
+            + 10;
+        assert!(
+            (lo..=hi).contains(&lost),
+            "outage from frame {} to {} ({} frames, expected {}..={})",
+            last,
+            first,
+            lost,
             lo,
             hi
         );
