@@ -22,6 +22,7 @@ mod tests {
     use embassy_stm32::{bind_interrupts, pac, peripherals, Peri};
     use embassy_time::{Duration, Instant};
     use shared::bridge::{AfterHold, Config, Timing};
+    use shared::head_port::XY2_TICK_HZ;
     use shared::xy2::rx::Receiver as Xy2Receiver;
     use shared::xy2::{LinkConfig, Mode};
     use shared::xy3;
@@ -1024,9 +1025,10 @@ mod tests {
     const U_LO: u16 = 48;
     /// The head output's ring (`bridge::bridge_wave_out`: two batches of
     /// `WAVE_BATCH` = 1000 words, 25 XY2-100 frames of 40 ticks at 4 MHz, 250 us)
-    /// on DMA2 stream 1, and its words per microsecond.
+    /// on DMA2 stream 1, and its words (ticks, `head_port::XY2_TICK_HZ`) per
+    /// microsecond.
     const OUT_RING: u16 = 2000;
-    const OUT_WORDS_PER_US: u16 = 4;
+    const OUT_WORDS_PER_US: u16 = (XY2_TICK_HZ / 1_000_000) as u16;
     /// The output half's elapsed time at which the stall may start: from
     /// `E_MIN_US` the bridge has written the half that just freed (it runs before
     /// thread mode does), and up to `E_MAX_US` the written half outlasts the stall
@@ -1148,6 +1150,10 @@ mod tests {
         let f = b.config.failsafe;
         let frame_us = 1_000_000 / u64::from(b.config.output.frame_rate_hz);
         assert_eq!(frame_us, 10, "the windows are written for 100 kHz");
+        // Whole frames fill each output half (the bridge writes a half a batch),
+        // so the output DMA's half boundary is the bridge's write boundary.
+        let out_tpf = XY2_TICK_HZ / b.config.output.frame_rate_hz;
+        assert_eq!(u32::from(OUT_RING / 2) % out_tpf, 0, "output batch != half");
         let xy3_half_us = (xy3::rx::WINDOW as u64 / 2 * frame_us).div_ceil(3);
         let half_frames = (xy3::rx::WINDOW as u64 / 2).div_ceil(3);
         // The windows as designed: the stall laps X's ring from the lowest fill.
@@ -1238,6 +1244,10 @@ mod tests {
             }
             for attempt in 0..STALL_ATTEMPTS {
                 embassy_time::Timer::after_micros(400 + 37 * u64::from(attempt % 7)).await;
+                // Only while the frames in step play (not into the source's end).
+                if phase.get() != 1 {
+                    return;
+                }
                 if let Some(p) = try_stall(attempt) {
                     // The stall ran before this line (P5 over thread mode).
                     point.set(Some(p));
