@@ -1046,7 +1046,7 @@ mod tests {
     /// Attempts at meeting both windows (a poll of `POLL_US` each, from a start
     /// stepped through the input's and the output's phases) and the poll's length,
     /// short enough that with the stall thread mode is held at most 360 us (the
-    /// source's ring holds at least a 500 us half, the read-back's 1 ms).
+    /// source's ring holds at least a 500 us half, the read-back's 2 ms).
     const STALL_ATTEMPTS: u32 = 50;
     const POLL_US: u64 = 60;
     /// `line::xy3_in`'s wait after a failed session before the next (1 ms).
@@ -1087,8 +1087,11 @@ mod tests {
             let hit = cortex_m::interrupt::free(|_| {
                 let x = pac::DMA1.st(0).ndtr().read().ndt();
                 let o = pac::DMA2.st(1).ndtr().read().ndt();
-                let x_fill = (X_RING - x) % X_RING % (X_RING / 2);
-                let out_us = (OUT_RING - o) % OUT_RING % (OUT_RING / 2) / OUT_WORDS_PER_US;
+                // NDTR counts down from the ring's length (wrapping: never above it
+                // while the rings run).
+                let x_fill = X_RING.wrapping_sub(x) % X_RING % (X_RING / 2);
+                let out_us =
+                    OUT_RING.wrapping_sub(o) % OUT_RING % (OUT_RING / 2) / OUT_WORDS_PER_US;
                 let ok = x_fill >= U_LO && (E_MIN_US..=E_MAX_US).contains(&out_us);
                 if ok {
                     CEC::pend();
@@ -1119,8 +1122,8 @@ mod tests {
     /// only 250..500 us are queued, and an output underrun replays the ring's
     /// stale batches at the head. So the stall starts where both are known
     /// ([`try_stall`]): line X at least [`U_LO`] bytes into its half (300 us more
-    /// lap the ring: overrun certain) and the output 10..150 us into its half (the
-    /// next batch is written, 350 us or more queued: no underrun). The X read then
+    /// lap the ring: overrun certain) and the output 10..120 us into its half (the
+    /// next batch is written, 380 us or more queued: no underrun). The X read then
     /// returns the overrun, `xy3_in` counts it, waits 1 ms and starts a new session
     /// behind the buffer.
     ///
