@@ -95,6 +95,9 @@ pub const SUSPECT_BAD: u32 = 3;
 /// Longest a good period waits for the next one to confirm it (0.5 ms, see the
 /// module docs): then it goes out unconfirmed.
 pub const CONFIRM_NS: u64 = 500_000;
+/// Good direct successors a period the rule passed needs while a window is open
+/// (a bad period seen, no good run since); 1 otherwise.
+pub const CONFIRM_OPEN: u8 = 2;
 /// Consecutive good periods that close the window.
 pub const GOOD_RUN: u8 = 8;
 /// The limit doubles at most this many times while restarts do not help.
@@ -113,9 +116,20 @@ pub struct StepWatch {
     good_run: u8,
     /// Restarts since the last closed window (the limit's doubling).
     backoff: u8,
-    /// The last good period the rule passed, waiting for the next period to
-    /// confirm it, and when it came.
-    held: Option<(Period, u64)>,
+    /// The good periods the rule passed, oldest first, waiting for the periods
+    /// after them to confirm them (at most [`CONFIRM_OPEN`] of them).
+    held: [Option<Held>; CONFIRM_OPEN as usize],
+}
+
+/// A good period waiting for its confirmation.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+struct Held {
+    period: Period,
+    /// When it came.
+    at: u64,
+    /// Good direct successors it still needs.
+    need: u8,
 }
 
 impl StepWatch {
@@ -127,7 +141,7 @@ impl StepWatch {
             bad: 0,
             good_run: 0,
             backoff: 0,
-            held: None,
+            held: [None; CONFIRM_OPEN as usize],
         }
     }
 
@@ -159,19 +173,49 @@ impl StepWatch {
         let decoded = period.all_ok();
         let good = decoded && kinds_agree(period);
         let (pass, restart) = self.outcome(now_ns, good);
-        if let Some((held, _)) = self.held.take() {
-            if good && start(period) == Some(held.end) {
-                held.for_each_event(&mut emit);
-            } else {
+        // Held periods are contiguous (each one directly follows the one before
+        // it), so this period confirms all of them or none.
+        let last_end = self.held.iter().flatten().last().map(|h| h.period.end);
+        let confirms = good && last_end.is_some() && start(period) == last_end;
+        for slot in self.held.iter_mut() {
+            let Some(h) = slot else { continue };
+            if !confirms {
+                *slot = None;
                 emit(dropped());
+            } else if h.need <= 1 {
+                h.period.for_each_event(&mut emit);
+                *slot = None;
+            } else {
+                h.need -= 1;
             }
+        }
+        // Keep the waiting ones at the front, oldest first.
+        if let [first @ None, second @ Some(_)] = &mut self.held {
+            *first = second.take();
         }
         if !decoded {
             period.for_each_event(&mut emit);
         } else if !good {
             emit(dropped());
         } else if pass {
-            self.held = Some((*period, now_ns));
+            // Inside an open window (a bad period seen, the good run not yet
+            // made) a period needs more confirmation (see the module docs).
+            let need = if self.bad_since.is_some() {
+                CONFIRM_OPEN
+            } else {
+                1
+            };
+            let new = Held {
+                period: *period,
+                at: now_ns,
+                need,
+            };
+            match self.held.iter_mut().find(|h| h.is_none()) {
+                Some(slot) => *slot = Some(new),
+                // Cannot happen: a slot is taken only while its period waits for
+                // more than one successor, so at most CONFIRM_OPEN - 1 wait here.
+                None => emit(dropped()),
+            }
         } else {
             emit(dropped());
         }
@@ -188,19 +232,31 @@ impl StepWatch {
     /// (the controller paused or stopped), its events go to `emit` unconfirmed.
     /// Call it whenever the input has been looked at (also with nothing new), at
     /// `now_ns`, after the periods that arrived.
-    pub fn release(&mut self, now_ns: u64, emit: impl FnMut(LineEvent)) {
-        if let Some((held, at)) = self.held {
-            if now_ns.saturating_sub(at) >= CONFIRM_NS {
-                self.held = None;
-                held.for_each_event(emit);
+    pub fn release(&mut self, now_ns: u64, mut emit: impl FnMut(LineEvent)) {
+        // The newest held period came last: once it has waited, so have all.
+        let due = self
+            .held
+            .iter()
+            .flatten()
+            .last()
+            .is_some_and(|h| now_ns.saturating_sub(h.at) >= CONFIRM_NS);
+        if due {
+            for slot in self.held.iter_mut() {
+                if let Some(h) = slot.take() {
+                    h.period.for_each_event(&mut emit);
+                }
             }
         }
     }
 
-    /// When the held period (if any) goes out unconfirmed: its time plus
-    /// [`CONFIRM_NS`].
+    /// When the held periods (if any) go out unconfirmed: the newest one's time
+    /// plus [`CONFIRM_NS`].
     pub fn release_due(&self) -> Option<u64> {
-        self.held.map(|(_, at)| at.saturating_add(CONFIRM_NS))
+        self.held
+            .iter()
+            .flatten()
+            .last()
+            .map(|h| h.at.saturating_add(CONFIRM_NS))
     }
 
     /// The rule on a period's outcome (`good`: every line decoded). Returns (a good
