@@ -189,9 +189,10 @@ impl StepWatch {
                 h.need -= 1;
             }
         }
-        // Keep the waiting ones at the front, oldest first.
-        if let [first @ None, second @ Some(_)] = &mut self.held {
-            *first = second.take();
+        // Keep the waiting ones at the front, oldest first (the oldest needs
+        // the fewest successors, so releases free the front slot).
+        if self.held.first().is_some_and(Option::is_none) {
+            self.held.rotate_left(1);
         }
         if !decoded {
             period.for_each_event(&mut emit);
