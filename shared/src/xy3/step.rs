@@ -116,9 +116,12 @@ pub struct StepWatch {
     good_run: u8,
     /// Restarts since the last closed window (the limit's doubling).
     backoff: u8,
-    /// The good periods the rule passed, oldest first, waiting for the periods
-    /// after them to confirm them (at most [`CONFIRM_OPEN`] of them).
-    held: [Option<Held>; CONFIRM_OPEN as usize],
+    /// The oldest good period the rule passed that waits for the periods after
+    /// it to confirm it.
+    held: Option<Held>,
+    /// The one after it, also waiting (only inside an open window, where a
+    /// period needs [`CONFIRM_OPEN`] = 2 successors: at most two wait).
+    second: Option<Held>,
 }
 
 /// A good period waiting for its confirmation.
@@ -141,7 +144,8 @@ impl StepWatch {
             bad: 0,
             good_run: 0,
             backoff: 0,
-            held: [None; CONFIRM_OPEN as usize],
+            held: None,
+            second: None,
         }
     }
 
@@ -173,26 +177,36 @@ impl StepWatch {
         let decoded = period.all_ok();
         let good = decoded && kinds_agree(period);
         let (pass, restart) = self.outcome(now_ns, good);
-        // Held periods are contiguous (each one directly follows the one before
-        // it), so this period confirms all of them or none.
-        let last_end = self.held.iter().flatten().last().map(|h| h.period.end);
-        let confirms = good && last_end.is_some() && start(period) == last_end;
-        for slot in self.held.iter_mut() {
-            let Some(h) = slot else { continue };
-            if !confirms {
-                *slot = None;
-                emit(dropped());
-            } else if h.need <= 1 {
-                h.period.for_each_event(&mut emit);
-                *slot = None;
+        if let Some(h) = self.held.as_mut() {
+            // The waiting periods are contiguous (each directly follows the one
+            // before it): this one confirms both or neither.
+            let last_end = self.second.as_ref().map_or(h.period.end, |s| s.period.end);
+            if good && start(period) == Some(last_end) {
+                h.need = h.need.saturating_sub(1);
+                if let Some(s) = self.second.as_mut() {
+                    s.need = s.need.saturating_sub(1);
+                }
+                // The oldest needs the fewest: release from the front.
+                if h.need == 0 {
+                    h.period.for_each_event(&mut emit);
+                    // In step, nothing else waits: no move of a period.
+                    if self.second.is_none() {
+                        self.held = None;
+                    } else if let Some(s) = self.second.as_ref().filter(|s| s.need == 0) {
+                        s.period.for_each_event(&mut emit);
+                        self.held = None;
+                        self.second = None;
+                    } else {
+                        self.held = self.second.take();
+                    }
+                }
             } else {
-                h.need -= 1;
+                self.held = None;
+                emit(dropped());
+                if self.second.take().is_some() {
+                    emit(dropped());
+                }
             }
-        }
-        // Keep the waiting ones at the front, oldest first (the oldest needs
-        // the fewest successors, so releases free the front slot).
-        if self.held.first().is_some_and(Option::is_none) {
-            self.held.rotate_left(1);
         }
         if !decoded {
             period.for_each_event(&mut emit);
@@ -211,11 +225,15 @@ impl StepWatch {
                 at: now_ns,
                 need,
             };
-            match self.held.iter_mut().find(|h| h.is_none()) {
-                Some(slot) => *slot = Some(new),
-                // Cannot happen: a slot is taken only while its period waits for
-                // more than one successor, so at most CONFIRM_OPEN - 1 wait here.
-                None => emit(dropped()),
+            if self.held.is_none() {
+                self.held = Some(new);
+            } else if self.second.is_none() {
+                self.second = Some(new);
+            } else {
+                // Cannot happen: a period that finds one waiting needs more than
+                // one successor only inside an open window, where 2 suffice, so
+                // the older one went out or was dropped by now.
+                emit(dropped());
             }
         } else {
             emit(dropped());
@@ -234,18 +252,13 @@ impl StepWatch {
     /// Call it whenever the input has been looked at (also with nothing new), at
     /// `now_ns`, after the periods that arrived.
     pub fn release(&mut self, now_ns: u64, mut emit: impl FnMut(LineEvent)) {
-        // The newest held period came last: once it has waited, so have all.
-        let due = self
-            .held
-            .iter()
-            .flatten()
-            .last()
-            .is_some_and(|h| now_ns.saturating_sub(h.at) >= CONFIRM_NS);
-        if due {
-            for slot in self.held.iter_mut() {
-                if let Some(h) = slot.take() {
-                    h.period.for_each_event(&mut emit);
-                }
+        // The newest waiting period came last: once it has waited, so have all.
+        if self
+            .newest()
+            .is_some_and(|h| now_ns.saturating_sub(h.at) >= CONFIRM_NS)
+        {
+            for h in [self.held.take(), self.second.take()].iter().flatten() {
+                h.period.for_each_event(&mut emit);
             }
         }
     }
@@ -253,11 +266,12 @@ impl StepWatch {
     /// When the held periods (if any) go out unconfirmed: the newest one's time
     /// plus [`CONFIRM_NS`].
     pub fn release_due(&self) -> Option<u64> {
-        self.held
-            .iter()
-            .flatten()
-            .last()
-            .map(|h| h.at.saturating_add(CONFIRM_NS))
+        self.newest().map(|h| h.at.saturating_add(CONFIRM_NS))
+    }
+
+    /// The newest period waiting for its confirmation.
+    fn newest(&self) -> Option<&Held> {
+        self.second.as_ref().or(self.held.as_ref())
     }
 
     /// The rule on a period's outcome (`good`: every line decoded). Returns (a good
