@@ -165,7 +165,7 @@ impl Run {
 /// `[(28, 1), (44, 2)]` without the frame-kind rule.
 const GLITCH_ESCAPES: [(usize, usize); 0] = [];
 
-/// [`GLITCH_ESCAPES`] for `XY3_STEP_CASES=400` (about 80 s): 9 frames in 9
+/// [`GLITCH_ESCAPES`] for `XY3_STEP_CASES=400` (about 30 s): 9 frames in 9
 /// runs, each the glitch's own frame (24-bit frames, slaves dropping partial
 /// bytes, 1..3 extra edges: the spoilt frame passes its 2-bit parity, the line
 /// is in step again from the next frame, which confirms it). No bad period
