@@ -67,11 +67,11 @@ fn run(lines: &[Vec<u8>], t0: u64, watch: &mut StepWatch) -> Out {
         rx.push_ends(&ends);
         while let Some(p) = rx.poll() {
             let i = out.frames.len();
-            let mut frame = None;
+            let mut released = Vec::new();
             let t = t0 + (i as u64 + 1) * FP;
             let restart = watch.period(t, &p, |e| match e {
-                // Only the held period, the one before, is ever released.
-                LineEvent::Frame(f) => frame = Some(f),
+                // Only the held periods, one or two before, are ever released.
+                LineEvent::Frame(f) => released.push(f),
                 LineEvent::Fault {
                     line: Line::Framing,
                     kind: FaultKind::Resync,
@@ -86,8 +86,8 @@ fn run(lines: &[Vec<u8>], t0: u64, watch: &mut StepWatch) -> Out {
                 out.restart = Some(i);
             }
             out.frames.push(None);
-            if let Some(f) = frame {
-                out.frames[i - 1] = Some(f);
+            for f in released {
+                place(&mut out.frames, i, t0, f);
             }
             out.good.push(p.all_ok());
         }
@@ -97,13 +97,32 @@ fn run(lines: &[Vec<u8>], t0: u64, watch: &mut StepWatch) -> Out {
     // Only a good period is ever held.
     assert!(watch.release_due().is_none() || out.good.last() == Some(&true));
     watch.release(end + CONFIRM_NS - 1, |_| panic!("released early"));
+    let mut released = Vec::new();
     watch.release(end + CONFIRM_NS, |e| {
-        if let (LineEvent::Frame(f), Some(last)) = (e, out.frames.last_mut()) {
-            *last = Some(f);
+        if let LineEvent::Frame(f) = e {
+            released.push(f);
         }
     });
+    let i = out.frames.len();
+    for f in released {
+        place(&mut out.frames, i, t0, f);
+    }
     assert_eq!(watch.release_due(), None);
     out
+}
+
+/// Records frame `f`, released when period `i` came (or after the last, `i` =
+/// the count), at the period it stands for: one or two before `i`, told by its X
+/// value (the run starts at period `t0 / FP`). Every released frame here has
+/// its own X: X is in step, or (`two_lines_one_shifted_also_restarts`) no
+/// shifted period of X gets out.
+fn place(frames: &mut [Option<ForwardFrame>], i: usize, t0: u64, f: ForwardFrame) {
+    let from = (t0 / FP) as usize;
+    let x = f.axis(Axis::X).map(|p| p.to_raw(20));
+    let back = (1..=2)
+        .find(|&d| i >= d && x == Some(value(0, from + i - d)))
+        .expect("a released frame is one of the two periods before");
+    frames[i - back] = Some(f);
 }
 
 /// The 20-bit Y value of a frame.
