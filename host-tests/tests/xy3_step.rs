@@ -106,7 +106,7 @@ impl Run {
     /// frame it carries. A frame no input frame carries (check (a)) must carry
     /// one on every line but `faulty` (the line the fault hit): an *escape*, a
     /// period of the faulty line that passed its check by chance before the
-    /// watch withheld them (see [`ESCAPES`]). Anything else panics.
+    /// watch withheld them (see [`GLITCH_ESCAPES`]). Anything else panics.
     fn carried(&self, c: &Config, faulty: Option<usize>, label: &str) -> Vec<Out> {
         let others = |v: &[Option<u32>; 5]| {
             let mut v = *v;
@@ -154,17 +154,36 @@ impl Run {
 }
 
 /// The wrong frames [`glitched_line_restarts_the_session`] forwards (its seed):
-/// (case, input frame after the glitch's) of each period the shifted line
-/// passed by chance before the watch had seen [`shared::xy3::step::SUSPECT_BAD`]
-/// bad periods, *and* whose next period passed too (the watch releases a good
-/// period only when the next one confirms it), with position frames on every
-/// line but X (a command elsewhere without the same one on X is withheld). The
-/// firmware forwards them too, and the hold then repeats the last. At 400
-/// glitches: 11 frames in 11 runs, most of them the glitch's own frame of a
-/// glitch the line heals from at once (the next period is in step and confirms
-/// it); 17 in 16 without the frame-kind rule, whose table here was
-/// `[(28, 1), (44, 2)]`, and 71 in 60 without the confirmation.
-const GLITCH_ESCAPES: [(usize, usize); 1] = [(44, 2)];
+/// (case, input frame after the glitch's) of each shifted period that passed
+/// its check by chance and still got out. A period is released only when the
+/// next one confirms it, and while a window is open (a bad period seen, no
+/// good run since) only when the next two do
+/// ([`shared::xy3::step::CONFIRM_OPEN`]); a command on a line other than X
+/// without the same one on X is withheld. None at 48 glitches: the table was
+/// `[(44, 2)]` (a line a byte early after missed edges, two chance passes
+/// right after the first bad period) with one confirming period, and
+/// `[(28, 1), (44, 2)]` without the frame-kind rule.
+const GLITCH_ESCAPES: [(usize, usize); 0] = [];
+
+/// [`GLITCH_ESCAPES`] for `XY3_STEP_CASES=400` (about 30 s): 9 frames in 9
+/// runs, each the glitch's own frame (24-bit frames, slaves dropping partial
+/// bytes, 1..3 extra edges: the spoilt frame passes its 2-bit parity, the line
+/// is in step again from the next frame, which confirms it). No bad period
+/// comes before or after it, so no rule of the watch can refuse it; counting
+/// each line's clock edges would (README "What is left"). Was 11 in 11 with
+/// one confirming period (also `(44, 2)` and `(156, 1)`, lasting shifts), 17
+/// in 16 without the frame-kind rule, 71 in 60 without the confirmation.
+const GLITCH_ESCAPES_400: [(usize, usize); 9] = [
+    (80, 0),
+    (84, 0),
+    (108, 0),
+    (136, 0),
+    (196, 0),
+    (212, 0),
+    (232, 0),
+    (288, 0),
+    (332, 0),
+];
 
 /// The wrong frames [`stuck_line_restarts_with_backoff_and_never_forwards`]
 /// forwards: the case of each frame the line broke in that still passed its
@@ -285,7 +304,14 @@ fn glitched_line_restarts_the_session() {
         "size  partial    line edges  glitch_us  request_us  restart_us  resume_us  lost  withheld"
     );
     let mut escapes = Vec::new();
-    for case in 0..48 {
+    // 48 by default; `XY3_STEP_CASES=400` for the longer campaign (its escapes
+    // are pinned too).
+    let cases: usize = match std::env::var("XY3_STEP_CASES").as_deref() {
+        Ok("400") => 400,
+        Ok(other) => panic!("XY3_STEP_CASES={other}: 48 (unset) or 400"),
+        Err(_) => 48,
+    };
+    for case in 0..cases {
         let size = if case % 2 == 0 {
             FrameSize::Bits24
         } else {
@@ -479,7 +505,7 @@ fn glitched_line_restarts_the_session() {
         );
     }
     println!(
-        "{restarted} of 48 glitches restarted the session; {} wrong frame(s) forwarded in {} case(s); {withheld_total} shifted periods withheld",
+        "{restarted} of {cases} glitches restarted the session; {} wrong frame(s) forwarded in {} case(s); {withheld_total} shifted periods withheld",
         escapes.len(),
         {
             let mut c: Vec<usize> = escapes.iter().map(|e| e.0).collect();
@@ -491,7 +517,12 @@ fn glitched_line_restarts_the_session() {
     // Some shifted periods pass every check by chance (random data: up to one in
     // eight for 24-bit frames); the watch must have withheld them.
     assert!(withheld_total > 0, "no period withheld in any case");
-    assert_eq!(escapes, GLITCH_ESCAPES, "(case, frames after the glitch's)");
+    let want: &[(usize, usize)] = if cases == 400 {
+        &GLITCH_ESCAPES_400
+    } else {
+        &GLITCH_ESCAPES
+    };
+    assert_eq!(escapes, want, "(case, frames after the glitch's)");
 }
 
 /// Case 169 of [`glitched_line_restarts_the_session`] run with 400 cases (32-bit
