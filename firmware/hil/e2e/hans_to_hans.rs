@@ -25,7 +25,6 @@ mod tests {
     use xy_bridge::board::{self, Board};
     use xy_bridge::config::{self, Controller, Roles};
     use xy_bridge::dma_ring;
-    use xy_bridge::drivers::oversample_clock;
     use xy_bridge::drivers::serial_tx::SerialTx;
     use xy_bridge::tasks::Irqs;
 
@@ -87,14 +86,14 @@ mod tests {
 
     /// The whole bridge through its own tasks for a HANS-100 controller (normal
     /// mode, channel 1) and a HANS-100 head (axis map identity, Z from the input):
-    /// `app`'s per-side functions spawn the supervisor (watchdog, laser gate), LEDs
-    /// and statistics, `hans_in` (line executor) and `hans_decode` (decode
+    /// `app::spawn_supervision` spawns the supervisor (watchdog, laser gate), LEDs
+    /// and statistics, and the firmware's own `app::spawn_bridge` `hans_in` (line executor) and `hans_decode` (decode
     /// executor) on the TIM3 CH1 fs, `hans_status_out` (SAI2 B on PA0), and for the
     /// head `bridge_hans_out` (SAI1 A on PE6), `line::hans_status_in` (SPI6 on the
     /// TIM3 CH2 fs) passing on every second half, as a HANS-100 controller beside
     /// it makes it (`shared::hans::follow::status_every`), and `status::hans_status`,
     /// whose one receiver follows the STATUS line across the halves it does not
-    /// see, as `app::spawn_bridge` does for this pairing. The test's two sources
+    /// see. The test's two sources
     /// run on the SAI blocks the firmware leaves free, beside the firmware's
     /// blocks of the same SAIs (`drivers::serial_tx` resets an SAI only when its
     /// other block is idle): SAI1 B (PE3) plays the controller as in
@@ -191,20 +190,23 @@ mod tests {
         // respectively; PE3 and PD11 are in no `board::Resources` group and no
         // firmware task uses them. This test is the only user of SAI1 B, SAI2 A
         // and the two pins.
-        let (sai1, sai2, pe3, pd11) = unsafe {
+        // DMA2 S1 / S2 are `r.wave`'s, which only a waveform head uses: with a
+        // HANS-100 head `spawn_bridge` leaves them alone.
+        let (sai1, sai2, pe3, pd11, wave_dma, wave_status_dma) = unsafe {
             (
                 peripherals::SAI1::steal(),
                 peripherals::SAI2::steal(),
                 peripherals::PE3::steal(),
                 peripherals::PD11::steal(),
+                peripherals::DMA2_CH1::steal(),
+                peripherals::DMA2_CH2::steal(),
             )
         };
         // The controller, idle: zeros on the line (on the waveform output's DMA
         // stream: no waveform head in this pairing).
-        let w = r.wave;
         let ctrl_ring = dma_ring!(".sram2", u8, RING_BYTES);
         let mut ctrl_channel = None;
-        let mut controller = SerialTx::new(sai1, pe3, w.dma, Irqs, &mut ctrl_channel, ctrl_ring);
+        let mut controller = SerialTx::new(sai1, pe3, wave_dma, Irqs, &mut ctrl_channel, ctrl_ring);
         // The head's STATUS, healthy from the start (the gate waits for it).
         let status_ring = dma_ring!(".sram2", u8, RING_BYTES);
         status_ring.copy_from_slice(&healthy);
@@ -212,7 +214,7 @@ mod tests {
         let mut head_status = SerialTx::new(
             sai2,
             pd11,
-            w.status_dma,
+            wave_status_dma,
             Irqs,
             &mut status_channel,
             status_ring,
@@ -241,23 +243,11 @@ mod tests {
             )
         };
 
-        // The firmware's tasks for this pairing, spawned as `app::spawn_bridge` does.
+        // The firmware's tasks for this pairing, spawned by the firmware's own
+        // `app::spawn_bridge` (the test's peripherals are stolen above).
         let leds = [board.led_green, board.led_yellow, board.led_red];
         app::spawn_supervision(spawner, board.iwdg, board.laser_gate, leds, false);
-        let ex = Executors::start();
-        let head_enable = app::head_drivers(r.head_enable, r.head_mux, roles.head);
-        let fs = oversample_clock::start(r.fs.tim, Some(r.fs.ctrl), Some(r.fs.status));
-        app::controller_hans(ex, &config, r.xy3_in, r.hans_in, fs.ctrl);
-        app::controller_hans_status(ex, r.hans_status_out, r.ctrl_status, r.back.de);
-        app::head_hans(
-            ex,
-            &config,
-            roles,
-            r.hans_out,
-            head_enable,
-            r.hans_status_in,
-            fs.status,
-        );
+        app::spawn_bridge(spawner, Executors::start(), config, r);
 
         // Phases: 0 before the input, 1 while it runs (head OK), 2 the head's
         // alarm, 3 head OK again, 4 once the ring is back at zeros (`stop_at`),
