@@ -83,6 +83,19 @@ impl BsrrSource {
     pub(super) async fn write(&mut self, words: &[u32]) -> bool {
         self.ring.write_exact(words).await.is_ok()
     }
+
+    /// Ends the input: queues two halves of `idle` through `half` (once both are
+    /// queued the last frame has played, since the ring holds one lap of written
+    /// words at most, and the ring holds nothing but idle); `false`: the DMA ran
+    /// out of written words first.
+    pub(super) async fn finish(&mut self, half: &mut [u32], idle: u32) -> bool {
+        half.fill(idle);
+        let mut queued = true;
+        for _ in 0..2 {
+            queued &= self.write(half).await;
+        }
+        queued
+    }
 }
 
 impl Drop for BsrrSource {

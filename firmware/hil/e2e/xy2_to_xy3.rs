@@ -244,15 +244,9 @@ mod tests {
                     phase.set(1);
                 }
             }
-            // Two idle halves: once both are queued the last frame has played (the
-            // ring holds one lap of written words at most) and the ring holds
-            // nothing but idle.
             phase.set(2);
-            half.fill(tx.idle_word());
-            for _ in 0..2 {
-                if !source.write(&half).await {
-                    underrun.set(true);
-                }
+            if !source.finish(&mut half, tx.idle_word()).await {
+                underrun.set(true);
             }
             stop_at.set(Some(Instant::now()));
             embassy_time::Timer::after_millis(300).await;

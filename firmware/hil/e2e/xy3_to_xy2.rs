@@ -445,13 +445,9 @@ mod tests {
                     phase.set(1);
                 }
             }
-            // Two idle halves: once both are queued the last frame has played.
             phase.set(2);
-            half.fill(idle);
-            for _ in 0..2 {
-                if !source.write(&half).await {
-                    underrun.set(true);
-                }
+            if !source.finish(&mut half, idle).await {
+                underrun.set(true);
             }
             stop_at.set(Some(Instant::now()));
             embassy_time::Timer::after_millis(300).await;
@@ -872,13 +868,9 @@ mod tests {
                     phase.set(3);
                 }
             }
-            // Two idle halves: once both are queued the last frame has played.
             phase.set(4);
-            half.fill(idle);
-            for _ in 0..2 {
-                if !source.write(&half).await {
-                    underrun.set(true);
-                }
+            if !source.finish(&mut half, idle).await {
+                underrun.set(true);
             }
             stop_at.set(Some(Instant::now()));
             embassy_time::Timer::after_millis(300).await;
@@ -1228,11 +1220,8 @@ mod tests {
                 }
             }
             phase.set(3);
-            half.fill(idle);
-            for _ in 0..2 {
-                if !source.write(&half).await {
-                    underrun.set(true);
-                }
+            if !source.finish(&mut half, idle).await {
+                underrun.set(true);
             }
             stop_at.set(Some(Instant::now()));
             embassy_time::Timer::after_millis(300).await;
