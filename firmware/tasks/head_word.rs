@@ -20,7 +20,7 @@
 
 use shared::bridge::{Bridge, Config};
 use shared::model::{Alarms, FaultKind, Line, LineEvent};
-use shared::xy2::status_line::{StatusWordConfig, StatusWordReceiver};
+use shared::xy2::status_line::{samples_per_period, StatusWordConfig, StatusWordReceiver};
 use shared::xy2::{LinkConfig, StatusWord};
 
 use crate::channels::{Stats, HEAD_STATUS, STATS};
@@ -64,7 +64,7 @@ pub(super) struct StatusWordIn {
     ticks: u64,
     /// Tick of the next sample within its period.
     tick: u64,
-    /// Samples fed per output frame period (`ceil(ticks / 2)`).
+    /// Samples fed per output frame period ([`samples_per_period`]).
     period: u64,
     /// Samples fed so far (sample 0 = the middle of the first written word).
     fed: u64,
@@ -78,8 +78,8 @@ impl StatusWordIn {
     /// The receiver for an XY2-100 head with `ticks_per_frame` output ticks (two per
     /// bit, an idle tick when odd) per frame period.
     pub(super) fn new(config: &Config, ticks_per_frame: usize) -> Result<Self, &'static str> {
-        let period =
-            u16::try_from(ticks_per_frame.div_ceil(2)).map_err(|_| "frame period too long")?;
+        let period = u16::try_from(samples_per_period(ticks_per_frame))
+            .map_err(|_| "frame period too long")?;
         let h = config.head.xy2;
         let config = StatusWordConfig {
             pin: STATUS_PIN,

@@ -16,7 +16,9 @@ use shared::hans::rx::{ConfigError, HansRx, Mode, RxEvent};
 use shared::hans::{self, StatusReceiver};
 use shared::head_port::XY2_TICK_HZ;
 use shared::model::{FaultKind, HeadStatus, Line, LineEvent};
-use shared::xy2::status_line::{LevelDebouncer, StatusWordConfig, StatusWordReceiver};
+use shared::xy2::status_line::{
+    samples_per_period, LevelDebouncer, StatusWordConfig, StatusWordReceiver,
+};
 use shared::xy2::{self, StatusLevel};
 use shared::xy3::back::Parser;
 use shared::xy3::back_rx;
@@ -188,12 +190,12 @@ impl HeadStatusIn {
                 StatusForm::Word => {
                     // The status-word sample geometry: one sample per output bit,
                     // counted from each frame period's start as the firmware thins
-                    // them (`tasks/head_word.rs`): `ceil(ticks / 2)` per period, so
-                    // an odd number of ticks keeps the sample after the idle tick.
+                    // them (`tasks/head_word.rs`).
                     let ticks = XY2_TICK_HZ / config.output.frame_rate_hz.max(1);
                     let rx = StatusWordReceiver::new(StatusWordConfig {
                         pin: 0,
-                        samples_per_period: u16::try_from(ticks.div_ceil(2)).unwrap_or(u16::MAX),
+                        samples_per_period: u16::try_from(samples_per_period(ticks as usize))
+                            .unwrap_or(u16::MAX),
                         offset: 1,
                         link: xy2::LinkConfig {
                             mode: h.xy2.mode,

@@ -773,8 +773,8 @@ pub fn controller_widths(config: &Config, xy3_size: FrameSize) -> [u8; 3] {
 /// XY2-100 head STATUS word: the head answers every output frame period with the
 /// status frame of `word` (the `shared` STATUS transmitter's levels, pin 0), read
 /// one sample per output bit with the frame at offset 1; one item per period, at
-/// the period's end. `samples_per_period` = output ticks per frame / 2, rounded up
-/// (`tasks/head_word.rs` keeps the sample after an odd period's idle tick).
+/// the period's end. `samples_per_period`: `shared::xy2::status_line::samples_per_period`
+/// of the output's ticks per frame (the sample after an odd period's idle tick kept).
 pub fn status_words(
     word: xy2::StatusWord,
     link: &xy2::LinkConfig,

@@ -335,13 +335,13 @@ fn status_steps(
             };
             // One sample per output bit, counted from each frame period's start as
             // the firmware thins them (`tasks/head_word.rs`): bit j's is taken at
-            // its sampling edge (CLK low, tick 2j + 1), `ceil(ticks / 2)` per
+            // its sampling edge (CLK low, tick 2j + 1), `samples_per_period` per
             // period, so with an odd number of ticks (97.56 kHz: 41) the last one
             // falls after the idle tick and the next period starts afresh. Uniform
             // sampling every two ticks drifted half a bit per period there. Bit 0 of
             // the sample is STATUS.
             let ticks = (1e12 / rate as f64 / tick_ps).round().max(1.0) as usize;
-            let per_frame = ticks.div_ceil(2);
+            let per_frame = shared::xy2::status_line::samples_per_period(ticks);
             let period_ps = ticks as f64 * tick_ps;
             let sample_ps = |i: usize| {
                 (i / per_frame) as f64 * period_ps + (2 * (i % per_frame) + 1) as f64 * tick_ps

@@ -100,7 +100,8 @@ impl LevelDebouncer {
 pub struct StatusWordConfig {
     /// The status port bit (0..15).
     pub pin: u8,
-    /// Samples per output frame period: the output's ticks per frame / 2 (>= 20).
+    /// Samples per output frame period ([`samples_per_period`] of the output's
+    /// ticks per frame; >= 20).
     pub samples_per_period: u16,
     /// Index within the period of the sample holding the status frame's first bit
     /// (bit 19); may be up to `samples_per_period - 1`, the frame then continues into
@@ -108,6 +109,16 @@ pub struct StatusWordConfig {
     pub offset: u16,
     /// The link's parity policy (the status frame is always 16-bit layout).
     pub link: LinkConfig,
+}
+
+/// Status-word samples per output frame period of `ticks_per_frame` output ticks
+/// (two per bit; a period with an odd number ends with an idle tick): one per bit
+/// slot counted from the period's start, `ceil(ticks / 2)`, so an odd period's last
+/// sample falls after its idle tick and the next period starts afresh (as the
+/// firmware thins the compare samples). Sampling every two ticks throughout would
+/// drift half a bit per odd period.
+pub const fn samples_per_period(ticks_per_frame: usize) -> usize {
+    ticks_per_frame.div_ceil(2)
 }
 
 /// Why a status-word configuration is unusable.
