@@ -74,7 +74,14 @@
 //! recovered (13 edges, mean -0.18 bit; between the pairs within the eighth),
 //! no further line publishing a frame not sent in `tests::tail` (pinned) nor in
 //! 103 680 excursion lines on 30 more seeds (2 647 with it and without); a
-//! bound of 5/32 bit between the pairs published one more in `tests::tail`. Cold: the steady state
+//! bound of 5/32 bit between the pairs published one more in `tests::tail`.
+//! The eighth of a bit binds on the side the mid-pair edges lie on (a slip
+//! moves both groups that way); on the other side the edges between the pairs
+//! contradict the slip, and there they may lie up to a quarter bit off on
+//! average: seed 10627 (37.5 MHz, ±25 %, frame 66, `limits_over_many_locks`)
+//! had 7 of its 8 mid-pair edges a sample early (mean -0.33 bit) and its only
+//! 2 edges between the pairs on time and a sample late (+0.13 bit), and was
+//! lost (docs/engineering-log.md 2026-12-03 `tol25`). Cold: the steady state
 //! never calls it.
 //!
 //! # A short excursion: far edges on a clean line
@@ -258,7 +265,9 @@ pub fn between_window(ratio: i32) -> u32 {
 /// [`tail_window`] (their mean size within 3/8 bit) (module docs): true when
 /// the level changes between the last [`TAIL_PAIRS`] pairs (at bit
 /// boundaries `2i` where the pattern as read changes level; one at least)
-/// lie on average within [`between_window`] of where the timing puts them,
+/// lie on average within [`between_window`] of where the timing puts them
+/// towards the side the mid-pair edges' mean lies on (within [`tail_window`]
+/// the other way),
 /// every edge of the last `2 TAIL_PAIRS` bits (those and the mid-pair ones)
 /// within half a bit, and all of them on average within [`tail_window`].
 /// Measured as [`tail`] measures the mid-pair edges. Cold: a good line at ±25
@@ -276,10 +285,11 @@ fn between_pairs(ring: &Ring, head: u32, ratio: i32, pattern: u32) -> bool {
     // Sums and counts of all the edges and of those between the pairs (each
     // deviation below 32 samples: the sums fit).
     let (mut sum, mut n, mut inside) = (0i32, TAIL_PAIRS, true);
-    let (mut between_sum, mut between_n) = (0i32, 0u32);
+    let (mut between_sum, mut between_n, mut mid_sum) = (0i32, 0u32, 0i32);
     for i in FIRST..PAIRS {
         let r = mid.next(ring);
         sum = sum.wrapping_add(r);
+        mid_sum = mid_sum.wrapping_add(r);
         inside &= r.unsigned_abs() <= half;
         let r = between.next(ring);
         // Bits 2i - 1 and 2i (pattern bits 125 - 2i and 124 - 2i) differ: a
@@ -292,9 +302,20 @@ fn between_pairs(ring: &Ring, head: u32, ratio: i32, pattern: u32) -> bool {
             inside &= r.unsigned_abs() <= half;
         }
     }
+    // The between-pair edges' summed deviation towards the side the mid-pair
+    // edges lie on (where a slip moves both groups): within an eighth of a bit
+    // on average there, within a quarter bit away from it.
+    let toward = if mid_sum < 0 {
+        between_sum.wrapping_neg()
+    } else {
+        between_sum
+    };
+    let toward_ok = toward <= between_n.wrapping_mul(between_window(ratio)) as i32;
+    let away_ok = toward.wrapping_neg() <= between_n.wrapping_mul(tail_window(ratio)) as i32;
     inside
         && between_n > 0
-        && between_sum.unsigned_abs() <= between_n.wrapping_mul(between_window(ratio))
+        && toward_ok
+        && away_ok
         && sum.unsigned_abs() <= n.wrapping_mul(tail_window(ratio))
 }
 
@@ -786,8 +807,14 @@ mod tests {
             let (bound, wide) = (f64::from(w) / f64::from(r), f64::from(w + w / 2) / f64::from(r));
             let (between, all, worst) = between_offset(&ring, head, r, pattern);
             let clear = |v: f64, b: f64| (v.abs() - b).abs() > 1e-3;
-            let second = between.map(|b| (clear(b, 0.125) && clear(all, bound) && clear(worst, 0.5))
-                .then_some(b.abs() <= 0.125 && all.abs() <= bound && worst <= 0.5));
+            // The between-pair mean towards the mid-pair edges' side: within
+            // an eighth of a bit there, a quarter bit the other way.
+            let second = between.map(|b| {
+                let toward = if mean < 0.0 { -b } else { b };
+                let near = |v: f64, at: f64| (v - at).abs() <= 1e-3;
+                (!near(toward, 0.125) && !near(toward, -bound) && clear(all, bound) && clear(worst, 0.5))
+                    .then_some(toward <= 0.125 && toward >= -bound && all.abs() <= bound && worst <= 0.5)
+            });
             if clear(mean, bound) && clear(spread, wide) {
                 let expect = if spread > wide {
                     Some(false)
