@@ -32,18 +32,18 @@
 //!    `s` therefore sees word `s - 1` in the middle of its tick, for the whole run.
 //!
 //! # No stale words (the ring guard)
-//! A circular stream never stops by itself (RM0433 §15.3.9 "Circular mode": the
-//! number of data items is reloaded and the transfer goes on from the first
-//! address), so a writer that stalls past the words it queued would let the DMA play
+//! A circular stream never stops by itself (RM0433 §15.3 "DMA functional
+//! description", "Circular mode": the number of data items is reloaded at the end of
+//! each lap and the requests go on being served from the first address), so a writer that stalls past the words it queued would let the DMA play
 //! the ring's old batches again: positions one and two half periods old, the laser
 //! gate unchanged. The decision is `shared::bridge::ring_guard` (host-tested); here
 //! it runs as follows:
 //! - [`RingGuardHandler`] is bound on the stream's vector beside embassy's handler
 //!   and runs at P0 on the half-transfer (HTIF) and transfer-complete (TCIF)
-//!   interrupts (§15.3.16 / §15.5.5: HTIF when half the NDTR items are transferred,
-//!   TCIF at the end of the lap; the stream goes on either way). It finds the
-//!   boundary from NDTR (§15.5.6, items left in this lap: `ring.len() - NDTR` is the
-//!   index of the next word fetched), and: on time, sets the first
+//!   interrupts (§15.5.1 / §15.5.2, DMA_LISR / DMA_HISR: HTIF when half the items
+//!   of the lap are transferred, TCIF at its end; in circular mode the stream goes
+//!   on either way). It finds the boundary from NDTR (§15.5.6, DMA_SxNDTR: items
+//!   left in this lap, so `ring.len() - NDTR` is the index of the next word), and: on time, sets the first
 //!   `ring_guard::LEAD_WORDS` (32) of the half just played to the idle word; on a
 //!   miss (the half now playing was not refilled for this lap), sets the rest of it
 //!   and the whole other half to idle, drives the laser gate pin (PF13) low through
@@ -60,9 +60,10 @@
 //!   marks it filled. Late, it drops the batch and reports
 //!   [`WaveError::Underrun`]; the next write goes to the first half still ahead of
 //!   the DMA, so the head gets fresh words again one to two half periods after the
-//!   writer runs again. In direct mode (no FIFO, §15.3.12) the stream fetches each
-//!   word on its request, so a word written before the DMA reaches it is the word
-//!   played.
+//!   writer runs again. In direct mode (no FIFO; §15.3, "FIFO", direct mode) a
+//!   memory-to-peripheral stream preloads one item ahead of its request, so a word
+//!   written two or more ahead of the DMA position is the word played: the lead
+//!   (32) and the margin are far beyond that.
 //!
 //! Bound: the gate goes off and the idle words start at the first boundary after the
 //! last refilled half, i.e. within two half periods of a stall's start (one, if the
