@@ -40,11 +40,11 @@
 //!   of the DMA), so at worst a fragment of a **new** batch is played, never old
 //!   words.
 //! - A writer far behind: every claim of a half the DMA already entered is
-//!   [`Claim::Late`] with the next half it may claim; the batch is dropped (the
-//!   caller counts an underrun), and the halves it missed play idle.
-//! - Catch-up: after a miss the next claim may be the half after the one playing at
-//!   once (the ring is idle there), so the head gets fresh words again one to two
-//!   half periods after the writer runs again.
+//!   [`Claim::Late`] with the half it claims next, the one after the next (so that
+//!   its next batch, made in the meantime, is not late again); the batch is dropped
+//!   (the caller counts an underrun), and the halves it missed play idle.
+//! - Catch-up: the head gets fresh words again two to three half periods after the
+//!   writer runs again (the first batch it makes after the late one).
 
 /// Words at the start of each half set to idle when the DMA leaves it: they cover
 /// the guard interrupt's latency when the DMA comes back to an unfilled half (at
@@ -61,7 +61,8 @@ pub enum Claim {
     /// boundary is pending. Retry after the next boundary.
     Wait,
     /// The half asked for is (or is about to be) played already: drop the batch
-    /// (an underrun) and claim `next` instead.
+    /// (an underrun) and claim `next` instead: the half after the next one, so the
+    /// next batch has a whole half period to be made.
     Late {
         /// The first half that may still be claimed.
         next: u64,
@@ -179,15 +180,21 @@ impl RingGuard {
             return Claim::Wait;
         }
         let next = self.playing + 1;
+        // A late writer skips to the half after the next: the caller then has at
+        // least the rest of the playing half and the whole next one to make its
+        // next batch, so it is not late again by the time that batch is ready.
+        let resume = Claim::Late {
+            next: self.playing + 2,
+        };
         if n < next {
-            return Claim::Late { next };
+            return resume;
         }
         if n > next {
             return Claim::Wait;
         }
         if left < margin {
             // Too close: the DMA would reach the half during the copy.
-            return Claim::Late { next: next + 1 };
+            return resume;
         }
         self.claimed = Some(n);
         Claim::Granted

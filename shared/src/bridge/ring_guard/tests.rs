@@ -138,19 +138,25 @@ fn a_stall_plays_idle_with_the_gate_off_then_resumes() {
         );
     }
     assert_eq!(g.missed(), 4);
-    // The writer runs again: its half 8 is late; the next it may claim is 12.
-    assert_eq!(g.claim(next, 1, 500, MARGIN), Claim::Late { next: 12 });
-    next = 12;
-    assert_eq!(g.claim(next, 1, 500, MARGIN), Claim::Granted);
-    ring.write(12);
-    assert_eq!(g.fill(12), Fill::Done);
+    // The writer runs again while the DMA plays 11: its half 8 is late; it drops
+    // that batch and claims 13 next, which waits for the DMA to enter 12 (idle).
+    assert_eq!(g.claim(next, 1, 500, MARGIN), Claim::Late { next: 13 });
+    next = 13;
+    assert_eq!(g.claim(next, 1, 500, MARGIN), Claim::Wait);
+    let (p, lead, body, a) = boundary(&mut g, &mut ring);
+    assert_eq!((p, lead, body), (12, Words::Idle, Words::Idle));
+    assert!(a.gate_off);
+    assert_eq!(g.claim(next, 0, 10, MARGIN), Claim::Late { next: 14 });
+    assert_eq!(g.claim(next, 0, MARGIN, MARGIN), Claim::Granted);
+    ring.write(13);
+    assert_eq!(g.fill(13), Fill::Done);
     next += 1;
     let (p, lead, body, a) = boundary(&mut g, &mut ring);
-    assert_eq!((p, lead, body), (12, Words::Of(12), Words::Of(12)));
+    assert_eq!((p, lead, body), (13, Words::Of(13), Words::Of(13)));
     assert!(!a.gate_off);
     writer_on_time(&mut g, &mut ring, &mut next);
     let (p, lead, body, _) = boundary(&mut g, &mut ring);
-    assert_eq!((p, lead, body), (13, Words::Of(13), Words::Of(13)));
+    assert_eq!((p, lead, body), (14, Words::Of(14), Words::Of(14)));
 }
 
 #[test]
@@ -171,6 +177,11 @@ fn a_claim_too_close_to_the_boundary_is_late() {
     g.boundary();
     assert_eq!(g.claim(2, 1, MARGIN - 1, MARGIN), Claim::Late { next: 3 });
     assert_eq!(g.claim(2, 1, MARGIN, MARGIN), Claim::Granted);
+    // A late claim of a half already playing skips to the one after the next.
+    let mut g = RingGuard::new();
+    g.boundary();
+    g.boundary();
+    assert_eq!(g.claim(2, 0, HALF, MARGIN), Claim::Late { next: 4 });
 }
 
 #[test]
@@ -323,8 +334,10 @@ proptest! {
         for _ in 0..stall {
             boundary(&mut g, &mut ring);
         }
-        // Back: claim at wherever the DMA is (`left` words before its boundary);
-        // late claims move on, and at most one boundary passes before a grant.
+        // Back: claim at wherever the DMA is (`left` words before its boundary).
+        // A late claim moves on to the half after the next and waits one
+        // boundary for it; then it is granted with the whole half left.
+        let back_at = g.playing();
         let mut waited = 0;
         loop {
             let dma = (g.playing() % 2) as usize;
@@ -333,15 +346,17 @@ proptest! {
                 Claim::Granted => break,
                 Claim::Late { next: n } => {
                     prop_assert!(n > next);
+                    prop_assert_eq!(n, g.playing() + 2);
                     next = n;
                 }
                 Claim::Wait => {
-                    prop_assert!(left < MARGIN && waited == 0);
+                    prop_assert!(waited == 0);
                     waited += 1;
                     boundary(&mut g, &mut ring);
                 }
             }
         }
+        prop_assert!(g.playing() <= back_at + 1);
         prop_assert_eq!(next, g.playing() + 1);
         ring.write(next);
         prop_assert_eq!(g.fill(next), Fill::Done);
