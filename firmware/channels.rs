@@ -190,10 +190,15 @@ pub static HEAD_STATUS: Watch<CriticalSectionRawMutex, HeadStatus, 2> = Watch::n
 pub static LASER_GATE: Mutex<CriticalSectionRawMutex, RefCell<Option<Output<'static>>>> =
     Mutex::new(RefCell::new(None));
 
-/// Drives the laser gate, if it has been handed over.
+/// Drives the laser gate, if it has been handed over. On is refused while the
+/// waveform output's guard reports a missed half (`wave_out::laser_gate_allowed`:
+/// the head gets idle words, the guard turned the gate off, and only the bridge's
+/// gate rule restarted after the underrun may open it again). The check is under
+/// the gate's lock, so the guard cannot close the gate between it and the write.
 pub fn set_laser_gate(on: bool) {
     LASER_GATE.lock(|g| {
         if let Some(pin) = g.borrow_mut().as_mut() {
+            let on = on && crate::drivers::wave_out::laser_gate_allowed();
             pin.set_level(on.into());
         }
     });

@@ -3,9 +3,11 @@
 //! STATUS in, head side).
 //!
 //! embassy-stm32 0.6 has no DMA-to-GPIO helper. This driver lets the timer's update
-//! event request one DMA transfer per tick; embassy's [`WritableRingBuffer`] runs the
-//! stream in circular mode and tells us when a half is free again, so the encoder
-//! writes the next half while the DMA plays the current one (double buffering).
+//! event request one DMA transfer per tick; embassy's [`WritableRingBuffer`] sets up
+//! and runs the stream in circular mode (half-transfer and transfer-complete
+//! interrupts on), and the encoder writes the next half while the DMA plays the
+//! current one (double buffering), under the ring guard below (not through embassy's
+//! write path, whose underrun lets the DMA replay the ring).
 //!
 //! Register sequence (RM0433 §38 "Advanced-control timers (TIM1/TIM8)", §11 GPIO,
 //! §15/§17 DMA/DMAMUX):
@@ -29,6 +31,46 @@
 //!    (mid-period) takes sample `p`, then the update writes word `p` to BSRR. Sample
 //!    `s` therefore sees word `s - 1` in the middle of its tick, for the whole run.
 //!
+//! # No stale words (the ring guard)
+//! A circular stream never stops by itself (RM0433 §15.3 "DMA functional
+//! description", "Circular mode": the number of data items is reloaded at the end of
+//! each lap and the requests go on being served from the first address), so a writer that stalls past the words it queued would let the DMA play
+//! the ring's old batches again: positions one and two half periods old, the laser
+//! gate unchanged. The decision is `shared::bridge::ring_guard` (host-tested); here
+//! it runs as follows:
+//! - [`RingGuardHandler`] is bound on the stream's vector beside embassy's handler
+//!   and runs at P0 on the half-transfer (HTIF) and transfer-complete (TCIF)
+//!   interrupts (§15.5.1 / §15.5.2, DMA_LISR / DMA_HISR: HTIF when half the items
+//!   of the lap are transferred, TCIF at its end; in circular mode the stream goes
+//!   on either way). It finds the boundary from NDTR (§15.5.6, DMA_SxNDTR: items
+//!   left in this lap, so `ring.len() - NDTR` is the index of the next word), and: on time, sets the first
+//!   `ring_guard::LEAD_WORDS` (32) of the half just played to the idle word; on a
+//!   miss (the half now playing was not refilled for this lap), sets the rest of it
+//!   and the whole other half to idle, drives the laser gate pin (PF13) low through
+//!   GPIOF BSRR and raises the stale flag, which keeps `channels::set_laser_gate`
+//!   from opening the gate until the bridge has restarted its gate rule
+//!   ([`WaveOut::clear_stale`]). Cost on time: a few compares and 32 stores per half.
+//!   The head gets idle words (no clock edges: it holds its last position); the
+//!   lead covers the guard's latency (32 words are 4 us at 8 MHz ticks), so not even
+//!   the first word of an old batch plays.
+//! - [`WaveOut::write_half`] writes exactly one half: it claims the half after the
+//!   one the DMA plays while at least `COPY_MARGIN_US` (20 us) of the playing half
+//!   are left, copies with BASEPRI raised to mask everything below P0 (a stall of
+//!   the executors cannot leave a half copied in part in front of the DMA), and
+//!   marks it filled. Late, it drops the batch and reports
+//!   [`WaveError::Underrun`]; the next write goes to the first half still ahead of
+//!   the DMA, so the head gets fresh words again one to two half periods after the
+//!   writer runs again. In direct mode (no FIFO; §15.3, "FIFO", direct mode) a
+//!   memory-to-peripheral stream preloads one item ahead of its request, so a word
+//!   written two or more ahead of the DMA position is the word played: the lead
+//!   (32) and the margin are far beyond that.
+//!
+//! Bound: the gate goes off and the idle words start at the first boundary after the
+//! last refilled half, i.e. within two half periods of a stall's start (one, if the
+//! stall began after the writer had refilled), plus the guard's latency (< 1 us).
+//! What it assumes: the P0 handlers together never delay the guard by more than the
+//! lead nor the copy by more than the margin (they are microseconds long by design).
+//!
 //! # Status-word alignment (layouts.md §4, `shared::xy2::status_line`)
 //! The first word the encoder writes lands at ring index 0 after the DMA has played
 //! the idle pre-fill once (embassy's writable ring starts one lap ahead), i.e. it is
@@ -39,10 +81,12 @@
 //! of the first written word's tick on (sample `ring.len() + 1`), one per tick, in
 //! order; the caller picks the ticks it needs (one per bit, per frame period).
 //!
-//! # Realignment after an underrun or a status overrun
-//! An output underrun makes embassy restart the write position one lap ahead of
-//! wherever the DMA is; a status ring overrun loses the reader's count. Either way
-//! the driver takes **one consistent snapshot** of both streams and the timer:
+//! # Restart after an underrun, realignment after a status overrun
+//! After an output underrun the word count stays exact (the guard counts halves
+//! absolutely): the next write goes to a known half, and the status samples restart
+//! at its first word ([`StatusRead::restart`]) without a snapshot. A status ring
+//! overrun loses the reader's count: the driver takes **one consistent snapshot** of
+//! both streams and the timer:
 //! CR1.CEN = 0 stops the requests (the lines hold their levels for well under a
 //! microsecond, interrupts masked), a short wait lets the DMA serve a request already
 //! raised, then both NDTRs (RM0433 §15.5.6) and CNT are read, nothing moving. With
@@ -50,21 +94,23 @@
 //! next sample, the samples taken exceed the words played by `k = (s - o) mod
 //! out_len`, which must be 0 (CNT before the compare) or 1 (after it, CNT >= CCR1:
 //! the sample of this period is taken, its word not yet played); the status ring is a
-//! multiple of the output ring so `s mod out_len` is meaningful. The side that kept
-//! its count anchors the other. After an underrun the output ring restarts anyway
-//! (the next write lands one lap after the DMA), so the status reader restarts at its
-//! DMA position too and both counts start afresh from the snapshot (only their
-//! difference matters): this works even when the status ring overran as well. After
-//! a status overrun alone the output's count (`next_word` minus the queued words)
-//! gives the samples taken, and the output is not disturbed. Then the timer runs
+//! multiple of the output ring so `s mod out_len` is meaningful. The words played
+//! are the guard's half count and `o` (the next half if the DMA crossed a boundary
+//! whose interrupt is still pending, masked by the snapshot), so the samples taken
+//! are `played + k`, checked against `s`; the output is not disturbed. Then the timer runs
 //! again. The next [`WaveOut::read_status`] reports [`StatusRead::restart`]: its
 //! samples (and all later ones) start at the first word of the next write. A snapshot
-//! that fails its checks (`k` not 0 or 1, CNT disagreeing, the output count unknown)
+//! that fails its checks (`k` not 0 or 1, CNT disagreeing, the counts disagreeing)
 //! leaves the samples unaligned ([`WaveError::StatusUnaligned`]) until a later realignment
 //! succeeds; no phase is ever guessed.
 //!
 //! The ticks are exact only when the timer clock divides evenly (see
 //! README.md (section "Firmware") "Clock tree"); [`WaveOut::tick_hz`] reports the real rate.
+
+use core::cell::RefCell;
+use core::future::poll_fn;
+use core::sync::atomic::{compiler_fence, AtomicBool, Ordering};
+use core::task::Poll;
 
 use embassy_stm32::dma::{
     Channel, InterruptHandler, Priority, ReadableRingBuffer, TransferOptions, WritableRingBuffer,
@@ -74,6 +120,12 @@ use embassy_stm32::peripherals::{DMA2_CH1, DMA2_CH2};
 use embassy_stm32::timer::low_level::{OutputCompareMode, Timer};
 use embassy_stm32::timer::{AdvancedInstance4Channel, Ch1, Dma, UpDma};
 use embassy_stm32::{interrupt, pac, Peri};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use embassy_sync::waitqueue::AtomicWaker;
+use shared::bridge::ring_guard::{Claim, Fill, RingGuard, LEAD_WORDS};
+
+use crate::board::LASER_GATE_PIN;
 
 /// The output stream (board allocation: DMA2 stream 1, the type of `new`'s `dma`).
 const OUT_STREAM: usize = 1;
@@ -85,6 +137,126 @@ const STATUS_STREAM: usize = 2;
 const SETTLE_CYCLES: u32 = 200;
 /// Snapshots tried per realignment.
 const REALIGN_TRIES: usize = 3;
+/// Time a claimed half's copy may take at most, interrupts of the guard's priority
+/// included (module docs, "No stale words"): 1000 words copy in ~2..4 us.
+const COPY_MARGIN_US: u32 = 20;
+/// BASEPRI while a half is copied: masks every priority from 1 down (the
+/// executors, the HIL tests' stall at P5), leaves P0 (DMA, EXTI, the time driver,
+/// the guard). The H743 has 4 priority bits, in the high nibble.
+const BASEPRI_COPY: u8 = 1 << 4;
+
+/// What the guard interrupt needs: the [`RingGuard`] and the ring it blanks.
+struct Guarded {
+    guard: RingGuard,
+    /// Ring address (0: no output running, the guard does nothing).
+    ring: usize,
+    /// Words per half.
+    half: usize,
+    /// The idle word.
+    idle: u32,
+}
+
+/// The one output's guard state (the stream is DMA2 stream 1, so there is one).
+static GUARD: Mutex<CriticalSectionRawMutex, RefCell<Guarded>> =
+    Mutex::new(RefCell::new(Guarded {
+        guard: RingGuard::new(),
+        ring: 0,
+        half: 0,
+        idle: 0,
+    }));
+/// Woken by the guard at every boundary: the writer's next half may be free.
+static BOUNDARY: AtomicWaker = AtomicWaker::new();
+/// Set by the guard when the DMA entered a half the writer had not refilled (it
+/// turned the laser gate off); [`laser_gate_allowed`] refuses the gate until the
+/// writer has reported the underrun and cleared it ([`WaveOut::clear_stale`]).
+static STALE: AtomicBool = AtomicBool::new(false);
+
+/// False while the output plays idle words for a half the writer missed and the
+/// bridge has not yet restarted its gate rule ([`WaveOut::clear_stale`]): the laser
+/// gate must stay off. Read under the laser gate's lock, so the guard (which runs
+/// above it) cannot turn the gate off between this check and a gate-on write.
+pub fn laser_gate_allowed() -> bool {
+    !STALE.load(Ordering::Acquire)
+}
+
+/// The output ring guard (module docs, "No stale words"): bound on DMA2 stream 1
+/// beside embassy's handler (`tasks::Irqs`), it runs at every half-transfer and
+/// transfer-complete interrupt of the output stream, at P0.
+pub struct RingGuardHandler;
+
+impl interrupt::typelevel::Handler<interrupt::typelevel::DMA2_STREAM1> for RingGuardHandler {
+    unsafe fn on_interrupt() {
+        on_boundary();
+    }
+}
+
+/// Sets `ring[from..to]` to `idle`.
+///
+/// # Safety
+/// `ring` is the running output ring's address, `to` at most its length.
+unsafe fn blank(ring: usize, from: usize, to: usize, idle: u32) {
+    let p = ring as *mut u32;
+    for i in from..to {
+        // SAFETY: in the ring (caller); the DMA only reads it.
+        unsafe { core::ptr::write_volatile(p.add(i), idle) };
+    }
+}
+
+/// The guard's work at a boundary (module docs, "No stale words").
+fn on_boundary() {
+    let mut blanks = [(0usize, 0usize); 3];
+    let (ring, idle, gate_off) = GUARD.lock(|g| {
+        let mut g = g.borrow_mut();
+        let half = g.half;
+        if g.ring == 0 || half == 0 {
+            return (0, 0, false);
+        }
+        let pos = out_position(2 * half);
+        if pos / half == (g.guard.playing() % 2) as usize {
+            // No boundary since the last call (an interrupt of another flag).
+            return (0, 0, false);
+        }
+        let a = g.guard.boundary();
+        let lead = LEAD_WORDS.min(half);
+        let at = |s: usize| s * half;
+        if let Some(s) = a.blank_lead {
+            blanks[0] = (at(s), at(s) + lead);
+        }
+        if let Some(s) = a.blank_rest {
+            // The lead went idle when the DMA left this half; words behind the DMA
+            // are harmless to overwrite, so no position is needed.
+            blanks[1] = (at(s) + lead, at(s) + half);
+        }
+        if let Some(s) = a.blank_all {
+            blanks[2] = (at(s), at(s) + half);
+        }
+        (g.ring, g.idle, a.gate_off)
+    });
+    if ring == 0 {
+        return;
+    }
+    if gate_off {
+        // Straight to the pin (BSRR: atomic), then the flag the gate-on path checks.
+        pac::GPIOF.bsrr().write(|w| w.set_br(LASER_GATE_PIN, true));
+        STALE.store(true, Ordering::Release);
+    }
+    // Outside the lock: the writer runs below this priority, so nothing else writes
+    // the ring now; the blanks outrun the DMA (a store per cycle or two against a
+    // word per 30..60 cycles).
+    for (from, to) in blanks {
+        // SAFETY: ranges within the two halves of the running ring.
+        unsafe { blank(ring, from, to, idle) };
+    }
+    compiler_fence(Ordering::Release);
+    BOUNDARY.wake();
+}
+
+/// The output DMA's ring index (0..len) of the next word it fetches (RM0433 §15.5.6,
+/// DMA_SxNDTR: transfers left in this lap).
+fn out_position(len: usize) -> usize {
+    let ndtr = pac::DMA2.st(OUT_STREAM).ndtr().read().ndt() as usize;
+    (len - ndtr.min(len)) % len.max(1)
+}
 
 /// Errors of [`WaveOut`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, defmt::Format)]
@@ -96,9 +268,17 @@ pub enum WaveError {
         /// Timer clock.
         timer_hz: u32,
     },
-    /// The DMA played a half before the encoder refilled it (the output repeated old
-    /// words); the encoder must resynchronise.
+    /// The writer missed a half: the DMA entered it unfilled (it played idle words,
+    /// the laser gate went off) or was about to; the batch is dropped and the
+    /// encoder must resynchronise (module docs, "No stale words").
     Underrun,
+    /// A batch that is not exactly half the ring.
+    BatchLength {
+        /// Words given.
+        words: usize,
+        /// Words per half.
+        half: usize,
+    },
     /// The status sampler's ring was overwritten before it was read.
     StatusOverrun,
     /// The status samples' phase against the output words is not known (a
@@ -106,6 +286,8 @@ pub enum WaveError {
     StatusUnaligned,
     /// The status sampler was asked for after the timer had been started.
     AlreadyStarted,
+    /// The output ring is empty or of odd length (two halves are needed).
+    RingLength(usize),
     /// The status ring is not a multiple of the output ring.
     StatusRingLength {
         /// Status ring length.
@@ -125,8 +307,12 @@ impl core::fmt::Display for WaveError {
                 )
             }
             Self::Underrun => f.write_str("waveform DMA underrun"),
+            Self::BatchLength { words, half } => {
+                write!(f, "batch of {words} words for a {half}-word ring half")
+            }
             Self::StatusOverrun => f.write_str("status sample ring overrun"),
             Self::StatusUnaligned => f.write_str("status samples no longer aligned to the output"),
+            Self::RingLength(n) => write!(f, "output ring of {n} words is not two halves"),
             Self::AlreadyStarted => f.write_str("status sampler must start before the timer"),
             Self::StatusRingLength { status, output } => write!(
                 f,
@@ -173,14 +359,20 @@ struct StatusSampler<'d> {
 /// A waveform output (and optional status sampler); plays once [`WaveOut::start`]ed.
 pub struct WaveOut<'d, T: AdvancedInstance4Channel> {
     timer: Timer<'d, T>,
-    ring: WritableRingBuffer<'d, u32>,
+    /// Owns the running stream (configured and started by embassy, stopped on
+    /// drop); its own write path is not used: the writer copies through
+    /// `ring_addr` under the guard's claims (module docs, "No stale words").
+    _stream: WritableRingBuffer<'d, u32>,
+    /// Address of the output ring.
+    ring_addr: usize,
     /// Length of the output ring (words).
     ring_len: usize,
     status: Option<StatusSampler<'d>>,
-    /// Number of the word the next write lands on (module docs).
+    /// The half the next write goes to (absolute, [`RingGuard`] numbering).
+    next_half: u64,
+    /// Number of the word the next write lands on (module docs): `next_half`
+    /// halves.
     next_word: u64,
-    /// `next_word` is known (false after an underrun whose realignment failed).
-    words_known: bool,
     started: bool,
     tick_hz: u32,
 }
@@ -188,13 +380,18 @@ pub struct WaveOut<'d, T: AdvancedInstance4Channel> {
 impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
     /// Prepares playing `ring` into `port`'s BSRR at `tick_hz` ticks per second (steps
     /// 1..5; [`WaveOut::start`] starts it). The ring is filled with `idle` first.
-    /// `ring.len()` must be even (two halves).
+    /// `ring.len()` must be even (two halves), and every [`WaveOut::write_half`]
+    /// writes exactly one half. `irq` binds embassy's handler and the
+    /// [`RingGuardHandler`] on the stream's vector.
     pub fn new(
         tim: Peri<'d, T>,
         dma: Peri<'d, DMA2_CH1>,
         irq: impl interrupt::typelevel::Binding<
                 <DMA2_CH1 as embassy_stm32::dma::ChannelInstance>::Interrupt,
                 InterruptHandler<DMA2_CH1>,
+            > + interrupt::typelevel::Binding<
+                <DMA2_CH1 as embassy_stm32::dma::ChannelInstance>::Interrupt,
+                RingGuardHandler,
             > + 'd,
         port: pac::gpio::Gpio,
         ring: &'d mut [u32],
@@ -225,8 +422,12 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         regs.sr().write_value(pac::timer::regs::SrAdv(0));
 
         // Step 3.
-        ring.fill(idle);
         let ring_len = ring.len();
+        if ring_len == 0 || !ring_len.is_multiple_of(2) {
+            return Err(WaveError::RingLength(ring_len));
+        }
+        ring.fill(idle);
+        let ring_addr = ring.as_mut_ptr() as usize;
 
         // Step 4.
         let request = UpDma::<T>::request(&*dma);
@@ -245,17 +446,29 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
             )
         };
 
+        // The guard knows the ring before the stream can interrupt; the DMA starts at
+        // index 0, half 0 of the run.
+        GUARD.lock(|g| {
+            *g.borrow_mut() = Guarded {
+                guard: RingGuard::new(),
+                ring: ring_addr,
+                half: ring_len / 2,
+                idle,
+            }
+        });
+        STALE.store(false, Ordering::Release);
         // The stream waits for requests: none come before step 7.
         ring.start();
         // Step 5.
         regs.dier().modify(|w| w.set_ude(true));
         Ok(Self {
             timer,
-            ring,
+            _stream: ring,
+            ring_addr,
             ring_len,
             status: None,
+            next_half: 2,
             next_word: ring_len as u64,
-            words_known: true,
             started: false,
             tick_hz: timer_hz / clocks.max(1),
         })
@@ -338,21 +551,88 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         self.tick_hz
     }
 
-    /// Waits until one half of the ring is free and writes `half` into it. Call with
-    /// about `ring.len() / 2` words per call to stay in step with the DMA halves (the
-    /// ring paces by free space, so whole frames of a slightly shorter batch are fine).
-    /// On an underrun `half` is dropped, the next write lands one lap after the DMA's
-    /// position and the status samples are realigned to it (module docs).
+    /// Waits until the guard grants the next half of the ring and writes `half`
+    /// (exactly half the ring) into it (module docs, "No stale words"). If the writer
+    /// came too late for that half (the DMA plays it, idle, or is about to) `half`
+    /// is dropped, [`WaveError::Underrun`] is returned, and the next write goes to
+    /// the first half still ahead of the DMA; the status samples then restart at it
+    /// ([`StatusRead::restart`]). After an underrun the caller restarts its laser
+    /// gate rule and calls [`WaveOut::clear_stale`].
     pub async fn write_half(&mut self, half: &[u32]) -> Result<(), WaveError> {
-        match self.ring.write_exact(half).await {
-            Ok(_) => {
-                self.next_word += half.len() as u64;
-                Ok(())
+        let len = self.ring_len / 2;
+        if half.len() != len {
+            return Err(WaveError::BatchLength {
+                words: half.len(),
+                half: len,
+            });
+        }
+        let margin = (u64::from(self.tick_hz) * u64::from(COPY_MARGIN_US) / 1_000_000) as usize;
+        let n = self.next_half;
+        let ring_len = self.ring_len;
+        let claim = poll_fn(|cx| {
+            BOUNDARY.register(cx.waker());
+            let c = GUARD.lock(|g| {
+                let pos = out_position(ring_len);
+                g.borrow_mut()
+                    .guard
+                    .claim(n, pos / len, len - pos % len, margin)
+            });
+            match c {
+                Claim::Wait => Poll::Pending,
+                c => Poll::Ready(c),
             }
-            Err(_) => {
-                self.realign(Anchor::Fresh);
-                Err(WaveError::Underrun)
-            }
+        })
+        .await;
+        if let Claim::Late { next } = claim {
+            self.restart_at(next);
+            return Err(WaveError::Underrun);
+        }
+        let base = (n % 2) as usize * len;
+        let ring = self.ring_addr as *mut u32;
+        // Only the guard (P0) may run during the copy: a stall below it cannot leave
+        // a half copied in part in front of the DMA.
+        let old = cortex_m::register::basepri::read();
+        cortex_m::register::basepri_max::write(BASEPRI_COPY);
+        // SAFETY: `base + len` is within the ring (two halves of `len`); the guard
+        // granted this half, so the DMA does not fetch from it before the copy ends
+        // (unless `fill` says otherwise, handled below).
+        unsafe { core::ptr::copy_nonoverlapping(half.as_ptr(), ring.add(base), len) };
+        compiler_fence(Ordering::Release);
+        let (fill, idle) = GUARD.lock(|g| {
+            let mut g = g.borrow_mut();
+            (g.guard.fill(n), g.idle)
+        });
+        if fill == Fill::Torn {
+            // The DMA entered the half during the copy (a stall at P0 longer than the
+            // margin): idle again, so no more of it plays.
+            // SAFETY: the half is within the ring.
+            unsafe { blank(self.ring_addr, base, base + len, idle) };
+        }
+        // SAFETY: restores the caller's BASEPRI.
+        unsafe { cortex_m::register::basepri::write(old) };
+        if fill == Fill::Torn {
+            self.restart_at(n + 1);
+            return Err(WaveError::Underrun);
+        }
+        self.next_half = n + 1;
+        self.next_word = self.next_half * len as u64;
+        Ok(())
+    }
+
+    /// Clears the guard's stale flag ([`laser_gate_allowed`]): call after an
+    /// underrun, once the laser gate rule has restarted.
+    pub fn clear_stale(&mut self) {
+        STALE.store(false, Ordering::Release);
+    }
+
+    /// After an underrun: the next write goes to half `next`; the status samples
+    /// restart at its first word.
+    fn restart_at(&mut self, next: u64) {
+        self.next_half = next;
+        self.next_word = next * (self.ring_len / 2) as u64;
+        if let Some(st) = self.status.as_mut() {
+            st.keep_from = self.next_word + 1;
+            st.restart = true;
         }
     }
 
@@ -373,7 +653,7 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
             // Anchored on the output's count if that is known; otherwise keep the
             // ring drained so it does not report stale overruns.
             let _ = st.ring.read(buf);
-            return if self.words_known && self.realign(Anchor::Output) {
+            return if self.realign() {
                 Ok(StatusRead {
                     samples: 0,
                     restart: self.take_restart(),
@@ -385,7 +665,7 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         let n = match st.ring.read(buf) {
             Ok((n, _)) => n,
             Err(_) => {
-                return if self.realign(Anchor::Output) {
+                return if self.realign() {
                     Ok(StatusRead {
                         samples: 0,
                         restart: self.take_restart(),
@@ -416,13 +696,11 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
             .is_some_and(|st| core::mem::take(&mut st.restart))
     }
 
-    /// The realignment of the module docs, anchored on `anchor`'s count; the status
-    /// sampler (if any) is aligned afterwards exactly when this returns true. Without
-    /// a status sampler only the output ring is reset.
-    fn realign(&mut self, anchor: Anchor) -> bool {
+    /// The realignment of the module docs after a status ring overrun: the samples
+    /// taken are counted from the words played; the status sampler is aligned
+    /// afterwards exactly when this returns true.
+    fn realign(&mut self) -> bool {
         if self.status.is_none() {
-            // Nothing to align: only the output ring restarts (one lap ahead).
-            self.ring.clear();
             return false;
         }
         let regs = self.timer.regs_advanced();
@@ -435,7 +713,7 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
                 regs.cr1().modify(|w| w.set_cen(false));
                 cortex_m::asm::delay(SETTLE_CYCLES);
                 let cnt = u32::from(regs.cnt().read().cnt());
-                let ok = self.realign_frozen(anchor, cnt, ccr);
+                let ok = self.realign_frozen(cnt, ccr);
                 regs.cr1().modify(|w| w.set_cen(true));
                 ok
             })
@@ -450,11 +728,24 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         ok
     }
 
-    /// The counting part of [`Self::realign`], with the timer stopped.
-    fn realign_frozen(&mut self, anchor: Anchor, cnt: u32, ccr: u32) -> bool {
+    /// The counting part of [`Self::realign`], with the timer stopped and
+    /// interrupts masked.
+    fn realign_frozen(&mut self, cnt: u32, ccr: u32) -> bool {
         let out_len = self.ring_len;
+        let half = out_len / 2;
         let ndtr = |stream: usize| pac::DMA2.st(stream).ndtr().read().ndt() as usize;
         let o = (out_len - ndtr(OUT_STREAM).min(out_len)) % out_len;
+        // Words played, absolutely: the guard's half, or the next one if the DMA
+        // crossed a boundary whose interrupt is still pending (masked here; never
+        // two: the guard runs within microseconds of each).
+        let playing = GUARD.lock(|g| g.borrow().guard.playing());
+        let in_half = (o / half) as u64;
+        let playing = if in_half == playing % 2 {
+            playing
+        } else {
+            playing + 1
+        };
+        let played = playing * half as u64 + (o % half) as u64;
         let Some(st) = self.status.as_mut() else {
             return false;
         };
@@ -464,57 +755,20 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         // known, so only the positions decide).
         let k = (s % out_len + out_len - o) % out_len;
         let k_ok = k <= 1 && (cnt == ccr || (k == 1) == (cnt > ccr));
-        let (out_len, st_len) = (out_len as u64, st.ring_len as u64);
-        let (o, s, k) = (o as u64, s as u64, k as u64);
-        match anchor {
-            Anchor::Fresh => {
-                // Both readers restart at their DMA's position; only differences
-                // of the counts matter, so the words played are renumbered from
-                // `next_word` on, keeping the samples taken (`played + k`) equal to
-                // `s` mod the status ring (and so `played` to `o` mod the output
-                // ring) for a later realignment's checks.
-                self.ring.clear();
-                st.ring.clear();
-                let base = self.next_word;
-                let target = (s + st_len - k % st_len) % st_len;
-                let played = base + (target + st_len - base % st_len) % st_len;
-                self.next_word = played + out_len;
-                st.read = played + k;
-                self.words_known = k_ok;
-                k_ok
-            }
-            Anchor::Output => {
-                // Samples taken from the words played.
-                st.ring.clear();
-                let Ok(free) = self.ring.len() else {
-                    return false;
-                };
-                let queued = out_len - (free as u64).min(out_len);
-                let Some(played) = self.next_word.checked_sub(queued) else {
-                    return false;
-                };
-                let taken = played + k;
-                let ok = k_ok && self.words_known && played % out_len == o && taken % st_len == s;
-                if ok {
-                    st.read = taken;
-                }
-                ok
-            }
+        st.ring.clear();
+        let taken = played + k as u64;
+        let ok = k_ok && taken % st.ring_len as u64 == s as u64;
+        if ok {
+            st.read = taken;
         }
+        ok
     }
-}
-
-/// How a realignment counts (module docs).
-#[derive(Clone, Copy)]
-enum Anchor {
-    /// After an output underrun: both rings restart at their DMA's position.
-    Fresh,
-    /// After a status ring overrun: the samples are counted from the output's words.
-    Output,
 }
 
 impl<T: AdvancedInstance4Channel> Drop for WaveOut<'_, T> {
     fn drop(&mut self) {
+        // The guard lets go of the ring first (it is no longer the output's).
+        GUARD.lock(|g| g.borrow_mut().ring = 0);
         // Stop the requests first; the ring buffers then stop their streams.
         self.timer.stop();
         self.timer.regs_advanced().dier().modify(|w| {

@@ -157,8 +157,9 @@ mod tests {
 
     /// XY2-100 head status word after a forced output underrun: as
     /// `xy2_status_word_loopback` (jumper PD3 -> PG9), but after two batches (whose
-    /// frames must come back) the writer stops for 2 ms, so the DMA replays stale
-    /// words and the status ring overruns too. `write_half` must report the underrun (that batch is dropped), the next
+    /// frames must come back) the writer stops for 2 ms, so the DMA runs past them
+    /// (the ring guard sets the halves idle: `wave_out` "No stale words") and the
+    /// status ring overruns too. `write_half` must report the underrun (that batch is dropped), the next
     /// `read_status` a restart (and no restart ever before), and from there the
     /// status frames of every batch written after the underrun must come back in
     /// order through a fresh `StatusWordReceiver` (the bridge's `StatusWordIn` does
@@ -226,8 +227,8 @@ mod tests {
         assert_eq!(underruns, 1, "the stall caused no underrun");
         assert!(restarted, "no realignment after the underrun");
         // Batch STALL_BEFORE was dropped; the frames of the batches before it came
-        // back (the last one's last bit is sampled from the replayed ring, which may
-        // end it differently).
+        // back (the last one's last bit is sampled from the idle words after it,
+        // which may end it differently).
         let played = STALL_BEFORE * FRAMES - 1;
         assert!(before.len() >= played, "{} words before", before.len());
         for (k, r) in before[..played].iter().enumerate() {

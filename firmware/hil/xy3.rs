@@ -125,11 +125,11 @@ mod tests {
             SpiSlaveRx::new(ly.spi, ly.sck, ly.mosi, Some(ly.nss), ly.dma, Irqs, y_ring).unwrap();
         let mut marks = SyncMarks::new(i.sync, i.exti, Irqs, 512);
 
-        // The output ring holds every frame plus idle, so no write can come late.
         let mut idle = [0u32; TPF];
         tx.idle(&mut idle).unwrap();
-        // One lap of idle plays before the first written word: 7000 words fit.
-        let ring = dma_ring!(".sram1", u32, (FRAMES + 40) * TPF);
+        // Two batches: each write is one half (the ring guard's unit); the loop
+        // below only encodes 20 frames between writes, far within a half (200 us).
+        let ring = dma_ring!(".sram1", u32, 2 * 20 * TPF);
         let mut out =
             WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, idle[0], 5_000_000).unwrap();
         out.start();
@@ -298,7 +298,8 @@ mod tests {
 
         let mut idle = [0u32; TPF];
         tx.idle(&mut idle).unwrap();
-        let ring = dma_ring!(".sram1", u32, (FRAMES + 40) * TPF);
+        // Two batches, one half each (the ring guard's unit).
+        let ring = dma_ring!(".sram1", u32, 2 * 20 * TPF);
         let mut out =
             WaveOut::new(w.tim, w.dma, Irqs, pac::GPIOD, ring, idle[0], 5_000_000).unwrap();
         out.start();

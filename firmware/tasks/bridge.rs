@@ -115,7 +115,11 @@ pub async fn bridge_wave_out(
         return;
     }
     let frames_per_batch = WAVE_BATCH / tpf;
+    // Each batch is exactly one half of the ring (the guard's unit: `wave_out`
+    // "No stale words"), so the ring is two batches of whole frames.
+    let batch_words = frames_per_batch * tpf;
     let ring = dma_ring!(".sram2", u32, 2 * WAVE_BATCH);
+    let ring = &mut ring[..2 * batch_words];
     let tick_hz = encoder.tick_hz(rate);
     let mut out = match WaveOut::new(r.tim, r.dma, Irqs, pac::GPIOD, ring, idle, tick_hz) {
         Ok(out) => out,
@@ -131,6 +135,8 @@ pub async fn bridge_wave_out(
         match StatusWordIn::new(&config, tpf) {
             Ok(w) => {
                 let status_ring = dma_ring!(".sram2", u16, 4 * WAVE_BATCH);
+                // A multiple of the output ring (realignment, `wave_out`).
+                let status_ring = &mut status_ring[..4 * batch_words];
                 match out.start_status_sampler(r.status_dma, Irqs, pac::GPIOG, status_ring) {
                     Ok(()) => word_in = Some(w),
                     Err(e) => defmt::error!("head status word: {}", e),
@@ -215,10 +221,16 @@ pub async fn bridge_wave_out(
         // the batch now playing was computed with it on.
         core.end_batch(gate, slot_ns);
 
-        let words = batch.get(..frames_per_batch * tpf).unwrap_or_default();
+        let words = batch.get(..batch_words).unwrap_or_default();
         match out.write_half(words).await {
             Ok(()) => Stats::bump(&STATS.output_halves),
-            Err(_) => Stats::bump(&STATS.output_underruns),
+            Err(_) => {
+                // The batch is dropped and the head got (or gets) idle words with the
+                // gate off: the gate opens again only by the three-batch rule.
+                Stats::bump(&STATS.output_underruns);
+                core.restart_gate();
+                out.clear_stale();
+            }
         }
         if let Some(w) = word_in.as_mut() {
             // `period`: the first slot of the next batch, where samples realigned

@@ -361,6 +361,14 @@ impl Core {
     /// batches), the statistics snapshot, the XY2 STATUS level and word towards the
     /// controller, the supervisor's heartbeat and fault flag, the XY3-100
     /// backchannel and the HANS STATUS frames towards a HANS-100 controller.
+    /// After an output underrun (the head got idle words, the ring guard closed
+    /// the gate): the gate rule starts again, so the gate opens only after three
+    /// whole batches computed with it on have been queued.
+    pub(super) fn restart_gate(&mut self) {
+        self.gate_history = 0;
+        set_laser_gate(false);
+    }
+
     pub(super) fn end_batch(&mut self, gate: bool, now_ns: u64) {
         self.gate_history = (self.gate_history << 1 | u8::from(gate)) & GATE_ON_HISTORY;
         let gate_on = self.gate_history == GATE_ON_HISTORY;

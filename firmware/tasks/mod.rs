@@ -33,6 +33,7 @@ use crate::channels::{
     set_laser_gate, Health, BRIDGE_BEAT, HEAD_FAULT, HEALTH, LASER_GATE, LINK_RUNNING, STATS,
 };
 use crate::drivers::sync_marks::SyncEdgeHandler;
+use crate::drivers::wave_out::RingGuardHandler;
 
 bind_interrupts!(
     /// Every interrupt a protocol driver uses (README.md (section "Firmware") allocation
@@ -47,7 +48,9 @@ bind_interrupts!(
         DMA1_STREAM5 => dma::InterruptHandler<peripherals::DMA1_CH5>;
         DMA1_STREAM6 => dma::InterruptHandler<peripherals::DMA1_CH6>;
         DMA2_STREAM0 => dma::InterruptHandler<peripherals::DMA2_CH0>;
-        DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>;
+        /// The waveform output's stream: embassy's handler and the ring guard
+        /// (`wave_out::RingGuardHandler`: no stale words at the head).
+        DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>, RingGuardHandler;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
         DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
         DMA2_STREAM4 => dma::InterruptHandler<peripherals::DMA2_CH4>;

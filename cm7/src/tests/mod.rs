@@ -9,6 +9,7 @@
 pub mod hans;
 pub mod position;
 pub mod prng;
+pub mod ring_guard;
 pub mod xy2;
 pub mod xy3;
 pub mod xy3_back;
@@ -28,4 +29,5 @@ pub const ALL: &[&[Case]] = &[
     xy3::CASES,
     xy3_back::CASES,
     hans::CASES,
+    ring_guard::CASES,
 ];

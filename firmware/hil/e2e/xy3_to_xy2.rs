@@ -38,7 +38,7 @@ mod tests {
 
     bind_interrupts!(
         /// PF14's edges for the emulated SCK-bus buffer (`e2e::sck_gate`), and the
-        /// overrun test's stall (CEC: unused on this board).
+        /// overrun tests' stall (CEC: unused on this board).
         struct GateIrq {
             EXTI15_10 => SckGateHandler;
             CEC => StallHandler;
@@ -1006,6 +1006,24 @@ mod tests {
     /// (a critical section would merge two laps' interrupts into one and could hide
     /// the overrun it is meant to cause).
     const STALL_US: u64 = 300;
+    /// The stall of `bridge_tasks_xy3_to_xy2_stall_beyond_output`: longer than the
+    /// head output's ring (500 us), so the output runs dry whatever its phase and
+    /// plays idle for at least 200 us; short enough that the source's queue (at
+    /// least [`SRC_QUEUED_US`] where it starts) outlasts it and the catch-up.
+    const LONG_STALL_US: u64 = 700;
+    /// The source's DMA (DMA1 S6) time into its half at which the long stall may
+    /// start: up to this the source has written the half that just freed (thread
+    /// mode, from [`E_MIN_US`]) and holds 1000 - 150 = 850 us of words.
+    const SRC_E_MAX_US: u16 = 150;
+    const SRC_QUEUED_US: u64 = 1000 - SRC_E_MAX_US as u64;
+    /// The source's ring (words, `start_source`) and words per microsecond.
+    const SRC_RING: u16 = (2 * SRC_FRAMES * SRC_TPF) as u16;
+    const SRC_WORDS_PER_US: u16 = 5;
+    /// The ring guard's bound (`wave_out`, "No stale words"): the gate goes off
+    /// and the head goes idle at the first output half boundary the bridge has not
+    /// refilled for, at most two halves (2 x 250 us) after the stall starts, plus
+    /// the guard's latency and the probe's resolution (1 us ticks).
+    const GUARD_SLACK_US: u64 = 10;
     /// XY3-100 input: line X's ring (`line::xy3_in`, two halves of
     /// `channels::XY3_HALF` bytes) on DMA1 stream 0, filled at 3 bytes a frame
     /// period: 0.3 bytes/us at 100 kHz.
@@ -1048,16 +1066,73 @@ mod tests {
     /// it ran.
     static STALL_AT_US: AtomicU32 = AtomicU32::new(0);
     static STALLED: AtomicBool = AtomicBool::new(false);
+    /// The stall's length (us).
+    static STALL_LEN_US: AtomicU32 = AtomicU32::new(STALL_US as u32);
+    /// What the stall saw on the head's CLK (PD0) and the laser gate (PF13), in us
+    /// from its start: CLK changes in all, the last one, the first time the gate
+    /// read low (`u32::MAX`: never), and CLK changes from then on.
+    static PROBE_EDGES: AtomicU32 = AtomicU32::new(0);
+    static PROBE_LAST_EDGE_US: AtomicU32 = AtomicU32::new(0);
+    static PROBE_GATE_OFF_US: AtomicU32 = AtomicU32::new(u32::MAX);
+    static PROBE_EDGES_AFTER_OFF: AtomicU32 = AtomicU32::new(0);
 
-    /// The CEC interrupt: one busy loop of [`STALL_US`].
+    /// The CEC interrupt: one busy loop of `STALL_LEN_US`, watching the head's CLK
+    /// and the laser gate while the line executor (and everything below P5) is
+    /// held: only the DMA and the ring guard (P0) act on the head meanwhile.
     struct StallHandler;
 
     impl Handler<CEC> for StallHandler {
         unsafe fn on_interrupt() {
             let t0 = Instant::now();
             STALL_AT_US.store(t0.as_micros() as u32, Ordering::Relaxed);
-            while t0.elapsed() < Duration::from_micros(STALL_US) {}
+            let len = Duration::from_micros(u64::from(STALL_LEN_US.load(Ordering::Relaxed)));
+            let clk = || pac::GPIOD.idr().read().idr(0) == pac::gpio::vals::Idr::HIGH;
+            let mut level = clk();
+            let (mut edges, mut last, mut off, mut after) = (0u32, 0u32, u32::MAX, 0u32);
+            loop {
+                let t = t0.elapsed();
+                if t >= len {
+                    break;
+                }
+                let us = t.as_micros() as u32;
+                let now = clk();
+                if now != level {
+                    level = now;
+                    edges += 1;
+                    last = us;
+                    if off != u32::MAX {
+                        after += 1;
+                    }
+                }
+                if off == u32::MAX && !laser_gate_high() {
+                    off = us;
+                }
+            }
+            PROBE_EDGES.store(edges, Ordering::Relaxed);
+            PROBE_LAST_EDGE_US.store(last, Ordering::Relaxed);
+            PROBE_GATE_OFF_US.store(off, Ordering::Relaxed);
+            PROBE_EDGES_AFTER_OFF.store(after, Ordering::Relaxed);
             STALLED.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// Which stall a test wants.
+    #[derive(Clone, Copy, PartialEq, Eq)]
+    enum StallKind {
+        /// [`STALL_US`], timed so that the head output does not run dry
+        /// (`bridge_tasks_xy3_to_xy2_restart_after_overrun`: the restart alone).
+        WithinOutput,
+        /// [`LONG_STALL_US`]: the head output runs dry
+        /// (`bridge_tasks_xy3_to_xy2_stall_beyond_output`).
+        BeyondOutput,
+    }
+
+    impl StallKind {
+        fn us(self) -> u64 {
+            match self {
+                StallKind::WithinOutput => STALL_US,
+                StallKind::BeyondOutput => LONG_STALL_US,
+            }
         }
     }
 
@@ -1070,21 +1145,31 @@ mod tests {
         attempt: u32,
     }
 
-    /// Polls both DMA positions for up to [`POLL_US`] and, inside one critical
+    /// Polls the DMA positions for up to [`POLL_US`] and, inside one critical
     /// section with the check (nothing at P6 can run between), pends the stall once
-    /// both are in their windows.
-    fn try_stall(attempt: u32) -> Option<StallPoint> {
+    /// they are in their windows: for [`StallKind::WithinOutput`] line X's fill and
+    /// the head output's phase, for [`StallKind::BeyondOutput`] the source's phase
+    /// (X laps at any fill, the output runs dry at any phase).
+    fn try_stall(attempt: u32, kind: StallKind) -> Option<StallPoint> {
         let end = Instant::now() + Duration::from_micros(POLL_US);
         while Instant::now() < end {
             let hit = cortex_m::interrupt::free(|_| {
                 let x = pac::DMA1.st(0).ndtr().read().ndt();
                 let o = pac::DMA2.st(1).ndtr().read().ndt();
+                let src = pac::DMA1.st(6).ndtr().read().ndt();
                 // NDTR counts down from the ring's length (wrapping: never above it
                 // while the rings run).
                 let x_fill = X_RING.wrapping_sub(x) % X_RING % (X_RING / 2);
                 let out_us =
                     OUT_RING.wrapping_sub(o) % OUT_RING % (OUT_RING / 2) / OUT_WORDS_PER_US;
-                let ok = x_fill >= U_LO && (E_MIN_US..=E_MAX_US).contains(&out_us);
+                let src_us =
+                    SRC_RING.wrapping_sub(src) % SRC_RING % (SRC_RING / 2) / SRC_WORDS_PER_US;
+                let ok = match kind {
+                    StallKind::WithinOutput => {
+                        x_fill >= U_LO && (E_MIN_US..=E_MAX_US).contains(&out_us)
+                    }
+                    StallKind::BeyondOutput => (E_MIN_US..=SRC_E_MAX_US).contains(&src_us),
+                };
                 if ok {
                     CEC::pend();
                 }
@@ -1115,7 +1200,12 @@ mod tests {
     /// stale batches at the head. So the stall starts where both are known
     /// ([`try_stall`]): line X at least [`U_LO`] bytes into its half (300 us more
     /// lap the ring: overrun certain) and the output 10..120 us into its half (the
-    /// next batch is written, 380 us or more queued: no underrun). The X read then
+    /// next batch is written, 380 us or more queued: no underrun). Since the ring
+    /// guard (`wave_out`, "No stale words") an underrun would no longer replay old
+    /// batches (the head would get idle words, the gate off), so the output window
+    /// is not needed for safety any more: it keeps this test to the input restart
+    /// alone; `bridge_tasks_xy3_to_xy2_stall_beyond_output` runs the output dry on
+    /// purpose. The X read then
     /// returns the overrun, `xy3_in` counts it, waits 1 ms and starts a new session
     /// behind the buffer.
     ///
@@ -1140,6 +1230,66 @@ mod tests {
     #[test]
     #[timeout(20)]
     async fn bridge_tasks_xy3_to_xy2_restart_after_overrun(board: Board) {
+        overrun_run(board, StallKind::WithinOutput).await;
+    }
+
+    /// A line-executor stall longer than the head output's queued words (the ring
+    /// guard, `wave_out` "No stale words"), through the same tasks, source,
+    /// read-back and emulated buffer as
+    /// `bridge_tasks_xy3_to_xy2_restart_after_overrun`: a [`LONG_STALL_US`] (700 us)
+    /// P5 busy loop from where the source holds at least [`SRC_QUEUED_US`] of words
+    /// (at any output phase: the output's 250..500 us run dry), which laps the
+    /// input ring as well, so the input restarts as in that test. The stall itself
+    /// watches the head's CLK (PD0) and the laser gate (PF13) while only P0 runs.
+    ///
+    /// Checks: those of the overrun test (every head period a frame sent or park,
+    /// in order, no unknown one: no old batch replayed, positions never back; one
+    /// outage, the hold spanning it; one restart; the gate's outage), and, seen
+    /// during the stall: the head was clocking at its start, its CLK stops (idle
+    /// words) no later than the gate goes off, which is within two output halves
+    /// (500 us) + [`GUARD_SLACK_US`] of the stall's start, no CLK edge after that
+    /// for the rest of the stall (at least 200 us of idle), and the gate stays off
+    /// through it.
+    ///
+    /// Jumpers: those of `bridge_tasks_xy3_to_xy2_end_to_end` (the backchannel
+    /// one unused); none for the emulated buffer.
+    #[test]
+    #[timeout(20)]
+    async fn bridge_tasks_xy3_to_xy2_stall_beyond_output(board: Board) {
+        overrun_run(board, StallKind::BeyondOutput).await;
+        let edges = PROBE_EDGES.load(Ordering::Relaxed);
+        let last = u64::from(PROBE_LAST_EDGE_US.load(Ordering::Relaxed));
+        let off = PROBE_GATE_OFF_US.load(Ordering::Relaxed);
+        let after = PROBE_EDGES_AFTER_OFF.load(Ordering::Relaxed);
+        defmt::info!(
+            "stall probe: {} CLK edges, the last at {} us; gate off at {} us, {} edges after",
+            edges,
+            last,
+            off,
+            after
+        );
+        assert!(edges > 0, "the head was not clocking when the stall began");
+        assert!(off != u32::MAX, "the gate never went off during the stall");
+        let off = u64::from(off);
+        assert!(
+            off <= 2 * BATCH_US + GUARD_SLACK_US,
+            "gate off {} us into the stall (bound {})",
+            off,
+            2 * BATCH_US + GUARD_SLACK_US
+        );
+        assert!(
+            last <= off + 2,
+            "head clocked at {} us, after the gate went off at {} us",
+            last,
+            off
+        );
+        // Idle from there to the stall's end: at least 700 - 512 us.
+        assert_eq!(after, 0, "head CLK edges after the gate went off");
+    }
+
+    /// The body of the two overrun tests, for a stall of `kind`.
+    async fn overrun_run(board: Board, kind: StallKind) {
+        let stall_us = kind.us();
         let b = baked(OVERRUN_N);
         let recovery = b.recovery;
         let f = b.config.failsafe;
@@ -1151,27 +1301,42 @@ mod tests {
         assert_eq!(u32::from(OUT_RING / 2) % out_tpf, 0, "output batch != half");
         let xy3_half_us = (xy3::rx::WINDOW as u64 / 2 * frame_us).div_ceil(3);
         let half_frames = (xy3::rx::WINDOW as u64 / 2).div_ceil(3);
-        // The windows as designed: the stall laps X's ring from the lowest fill.
+        // The windows as designed: the stall laps X's ring from the lowest fill;
+        // within the output's queued words or beyond all of them; within the
+        // source's.
         assert!(
-            u64::from(U_LO) + STALL_US * 3 / frame_us > u64::from(X_RING),
+            u64::from(U_LO) + stall_us * 3 / frame_us > u64::from(X_RING),
             "the stall does not lap the input ring"
         );
-        assert!(
-            u64::from(E_MAX_US) + STALL_US + CATCH_UP_US < 2 * BATCH_US,
-            "the stall could underrun the head output"
-        );
+        match kind {
+            StallKind::WithinOutput => assert!(
+                u64::from(E_MAX_US) + stall_us + CATCH_UP_US < 2 * BATCH_US,
+                "the stall could underrun the head output"
+            ),
+            StallKind::BeyondOutput => {
+                assert!(
+                    stall_us >= 2 * BATCH_US + 200,
+                    "the stall does not outlast the head output"
+                );
+                assert!(
+                    stall_us + u64::from(E_MIN_US) + CATCH_UP_US < SRC_QUEUED_US,
+                    "the stall could underrun the source"
+                );
+            }
+        }
+
         // The gate goes off `input_timeout_us` after the last valid frame (before
         // the stall), at a batch; back on once the new session's first periods
         // lock, the recovery run passes, their half completes and a batch drains
         // it.
         let off_us =
-            u64::from(f.input_timeout_us).max(STALL_US) + 2 * BATCH_US + SAMPLE_US + MARGIN_US;
+            u64::from(f.input_timeout_us).max(stall_us) + 2 * BATCH_US + SAMPLE_US + MARGIN_US;
         let back_us = (u64::from(xy3::rx::LOCK_PERIODS) + 2 + u64::from(recovery)) * frame_us
             + xy3_half_us
             + 2 * BATCH_US
             + SAMPLE_US
             + MARGIN_US;
-        let outage_us = STALL_US + RESTART_WAIT_US + back_us;
+        let outage_us = stall_us + RESTART_WAIT_US + back_us;
         assert!(
             u64::from(f.input_timeout_us) + u64::from(f.hold_us) > outage_us,
             "failsafe.hold_us shorter than the outage"
@@ -1183,6 +1348,7 @@ mod tests {
         let (tx, idle, mut source) = start_source(hb.tx_dma, &b);
         let gate = SckGate::arm(GateIrq);
         STALLED.store(false, Ordering::Relaxed);
+        STALL_LEN_US.store(stall_us as u32, Ordering::Relaxed);
         CEC::set_priority(Priority::P5);
         CEC::unpend();
         // SAFETY: the handler bound for CEC is `StallHandler`, which only waits
@@ -1240,7 +1406,7 @@ mod tests {
                 if phase.get() != 1 {
                     return;
                 }
-                if let Some(p) = try_stall(attempt) {
+                if let Some(p) = try_stall(attempt, kind) {
                     // The stall ran before this line (P5 over thread mode).
                     point.set(Some(p));
                     let now = Instant::now();
@@ -1322,7 +1488,7 @@ mod tests {
         assert_eq!(counts.closes, 2, "SCK-bus buffer closes (one restart)");
         assert_eq!(counts.opens, 2, "sessions in all (one restart)");
         assert!(
-            (STALL_US + RESTART_WAIT_US..=STALL_US + RESTART_WAIT_US + BATCH_US + MARGIN_US)
+            (stall_us + RESTART_WAIT_US..=stall_us + RESTART_WAIT_US + BATCH_US + MARGIN_US)
                 .contains(&u64::from(close_after_us)),
             "restart {} us after the stall's start",
             close_after_us
@@ -1340,8 +1506,8 @@ mod tests {
         // and the restart wait later (at most a batch and the margin more), and
         // its first frame forwarded is the recovery run's end as at the start
         // (`FrameSeq::check`: `recovery - 1 ..recovery + 10`).
-        let lo = (STALL_US + RESTART_WAIT_US) / frame_us + u64::from(recovery) - 1;
-        let hi = (STALL_US + RESTART_WAIT_US + BATCH_US + MARGIN_US) / frame_us
+        let lo = (stall_us + RESTART_WAIT_US) / frame_us + u64::from(recovery) - 1;
+        let hi = (stall_us + RESTART_WAIT_US + BATCH_US + MARGIN_US) / frame_us
             + half_frames
             + 4
             + u64::from(recovery)

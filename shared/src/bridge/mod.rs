@@ -95,6 +95,7 @@ mod counters;
 mod engine;
 pub mod head_out;
 pub mod pacing;
+pub mod ring_guard;
 #[cfg(feature = "serde")]
 pub mod serde_impl;
 pub mod status;

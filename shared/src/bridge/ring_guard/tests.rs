@@ -1,0 +1,367 @@
+//! Host tests of the ring guard: tables of the named cases and a model of the ring
+//! (what each ring half holds, lead and body apart) driven by random writers,
+//! stalls and races, checking that the DMA never plays words of another half.
+
+use super::*;
+use proptest::prelude::*;
+
+const MARGIN: usize = 100;
+const HALF: usize = 1000;
+
+/// What a part of a ring half holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Words {
+    Idle,
+    Of(u64),
+}
+
+/// The model ring: per ring half its lead and the rest.
+#[derive(Debug, Clone, Copy)]
+struct Ring {
+    lead: [Words; 2],
+    body: [Words; 2],
+}
+
+impl Ring {
+    fn new() -> Self {
+        Self {
+            lead: [Words::Idle; 2],
+            body: [Words::Idle; 2],
+        }
+    }
+    fn apply(&mut self, a: &Actions) {
+        if let Some(s) = a.blank_lead {
+            self.lead[s] = Words::Idle;
+        }
+        if let Some(s) = a.blank_rest {
+            self.body[s] = Words::Idle;
+        }
+        if let Some(s) = a.blank_all {
+            self.lead[s] = Words::Idle;
+            self.body[s] = Words::Idle;
+        }
+    }
+    fn write(&mut self, n: u64) {
+        let s = (n % 2) as usize;
+        self.lead[s] = Words::Of(n);
+        self.body[s] = Words::Of(n);
+    }
+}
+
+/// One boundary of the model: the DMA enters the next half, plays its lead during
+/// the guard's latency, then the rest after the guard acted. Returns the words
+/// played (lead, body) and the actions.
+fn boundary(g: &mut RingGuard, ring: &mut Ring) -> (u64, Words, Words, Actions) {
+    let p = g.playing() + 1;
+    let s = (p % 2) as usize;
+    let lead = ring.lead[s];
+    let a = g.boundary();
+    assert_eq!(g.playing(), p);
+    ring.apply(&a);
+    (p, lead, ring.body[s], a)
+}
+
+/// Words played in half `p` are its own or idle, never another half's.
+fn fresh_or_idle(p: u64, w: Words) -> bool {
+    w == Words::Idle || w == Words::Of(p)
+}
+
+/// A writer that writes every half on time, and the guard.
+fn writer_on_time(g: &mut RingGuard, ring: &mut Ring, next: &mut u64) {
+    let dma = (g.playing() % 2) as usize;
+    assert_eq!(g.claim(*next, dma, HALF, MARGIN), Claim::Granted);
+    ring.write(*next);
+    assert_eq!(g.fill(*next), Fill::Done);
+    *next += 1;
+}
+
+#[test]
+fn on_time_writer_plays_every_half_fresh_and_only_blanks_leads() {
+    let mut g = RingGuard::new();
+    let mut ring = Ring::new();
+    let mut next = 2;
+    // The pre-fill: the writer may claim half 2 while the DMA plays half 0? No:
+    // only the half after the one playing.
+    assert_eq!(g.claim(2, 0, HALF, MARGIN), Claim::Wait);
+    for _ in 0..50 {
+        let (p, lead, body, a) = boundary(&mut g, &mut ring);
+        if p >= 2 {
+            assert_eq!((lead, body), (Words::Of(p), Words::Of(p)));
+        }
+        assert!(!a.gate_off);
+        assert_eq!(a.blank_rest, None);
+        assert_eq!(a.blank_all, None);
+        // The half just played is a written one from half 3 on: its lead goes idle.
+        assert_eq!(a.blank_lead.is_some(), p >= 3);
+        writer_on_time(&mut g, &mut ring, &mut next);
+    }
+    assert_eq!(g.missed(), 0);
+}
+
+#[test]
+fn a_stall_plays_idle_with_the_gate_off_then_resumes() {
+    let mut g = RingGuard::new();
+    let mut ring = Ring::new();
+    let mut next = 2;
+    for _ in 0..6 {
+        boundary(&mut g, &mut ring);
+        writer_on_time(&mut g, &mut ring, &mut next);
+    }
+    // DMA plays 6, half 7 written. The writer stalls for 5 boundaries.
+    assert_eq!(g.playing(), 6);
+    let (p, lead, body, a) = boundary(&mut g, &mut ring);
+    assert_eq!((p, lead, body), (7, Words::Of(7), Words::Of(7)));
+    assert!(!a.gate_off);
+    // Half 8 not written: a miss. Its lead was blanked when the DMA left it.
+    let (p, lead, body, a) = boundary(&mut g, &mut ring);
+    assert_eq!((p, lead, body), (8, Words::Idle, Words::Idle));
+    assert_eq!(
+        a,
+        Actions {
+            blank_lead: None,
+            blank_rest: Some(0),
+            blank_all: Some(1),
+            gate_off: true
+        }
+    );
+    assert_eq!(g.missed(), 1);
+    // Further missed halves: already idle, nothing to blank, gate off again.
+    for p in 9..12 {
+        let (q, lead, body, a) = boundary(&mut g, &mut ring);
+        assert_eq!((q, lead, body), (p, Words::Idle, Words::Idle));
+        assert_eq!(
+            a,
+            Actions {
+                gate_off: true,
+                ..Actions::default()
+            }
+        );
+    }
+    assert_eq!(g.missed(), 4);
+    // The writer runs again while the DMA plays 11: its half 8 is late; it drops
+    // that batch and claims 13 next, which waits for the DMA to enter 12 (idle).
+    assert_eq!(g.claim(next, 1, 500, MARGIN), Claim::Late { next: 13 });
+    next = 13;
+    assert_eq!(g.claim(next, 1, 500, MARGIN), Claim::Wait);
+    let (p, lead, body, a) = boundary(&mut g, &mut ring);
+    assert_eq!((p, lead, body), (12, Words::Idle, Words::Idle));
+    assert!(a.gate_off);
+    assert_eq!(g.claim(next, 0, 10, MARGIN), Claim::Late { next: 14 });
+    assert_eq!(g.claim(next, 0, MARGIN, MARGIN), Claim::Granted);
+    ring.write(13);
+    assert_eq!(g.fill(13), Fill::Done);
+    next += 1;
+    let (p, lead, body, a) = boundary(&mut g, &mut ring);
+    assert_eq!((p, lead, body), (13, Words::Of(13), Words::Of(13)));
+    assert!(!a.gate_off);
+    writer_on_time(&mut g, &mut ring, &mut next);
+    let (p, lead, body, _) = boundary(&mut g, &mut ring);
+    assert_eq!((p, lead, body), (14, Words::Of(14), Words::Of(14)));
+}
+
+#[test]
+fn claims_wait_while_a_boundary_is_pending_or_the_ring_is_full() {
+    let mut g = RingGuard::new();
+    // DMA in ring half 1 but the guard has not seen the boundary yet.
+    assert_eq!(g.claim(1, 1, HALF, MARGIN), Claim::Wait);
+    assert_eq!(g.claim(2, 1, HALF, MARGIN), Claim::Wait);
+    g.boundary();
+    // Half 3 would overwrite the half playing.
+    assert_eq!(g.claim(3, 1, HALF, MARGIN), Claim::Wait);
+    assert_eq!(g.claim(2, 1, HALF, MARGIN), Claim::Granted);
+}
+
+#[test]
+fn a_claim_too_close_to_the_boundary_is_late() {
+    let mut g = RingGuard::new();
+    g.boundary();
+    assert_eq!(g.claim(2, 1, MARGIN - 1, MARGIN), Claim::Late { next: 3 });
+    assert_eq!(g.claim(2, 1, MARGIN, MARGIN), Claim::Granted);
+    // A late claim of a half already playing skips to the one after the next.
+    let mut g = RingGuard::new();
+    g.boundary();
+    g.boundary();
+    assert_eq!(g.claim(2, 0, HALF, MARGIN), Claim::Late { next: 4 });
+}
+
+#[test]
+fn writer_finishing_as_the_guard_runs() {
+    // Guard first: the boundary comes between claim and fill (only a stall of the
+    // guard's own priority can do that). The guard blanks; the fill is torn.
+    let mut g = RingGuard::new();
+    let mut ring = Ring::new();
+    g.boundary();
+    assert_eq!(g.claim(2, 1, HALF, MARGIN), Claim::Granted);
+    let (p, lead, body, a) = boundary(&mut g, &mut ring);
+    assert_eq!((p, lead, body), (2, Words::Idle, Words::Idle));
+    assert!(a.gate_off);
+    // The copy lands now, in front of the DMA: new words of half 2, then the writer
+    // blanks the rest again.
+    ring.write(2);
+    assert_eq!(g.fill(2), Fill::Torn);
+    assert_eq!(g.claim(3, 0, HALF, MARGIN), Claim::Granted);
+    // Writer first: fill before the boundary, the half plays.
+    let mut g = RingGuard::new();
+    g.boundary();
+    assert_eq!(g.claim(2, 1, MARGIN, MARGIN), Claim::Granted);
+    assert_eq!(g.fill(2), Fill::Done);
+    let a = g.boundary();
+    assert!(!a.gate_off);
+}
+
+#[test]
+fn a_fill_without_its_claim_is_torn() {
+    let mut g = RingGuard::new();
+    g.boundary();
+    assert_eq!(g.fill(2), Fill::Torn);
+    let a = g.boundary();
+    assert!(a.gate_off);
+}
+
+/// One step of a random run.
+#[derive(Debug, Clone, Copy)]
+enum Step {
+    /// The writer writes its next batch; the copy is overtaken by a boundary
+    /// (`torn`) or not; `left` is where the DMA is in its half.
+    Write { left: usize, torn: bool },
+    /// The DMA crosses a boundary (the writer does nothing).
+    Boundary,
+    /// A claim while the boundary is pending (DMA already in the other ring half).
+    Pending,
+}
+
+fn step() -> impl Strategy<Value = Step> {
+    prop_oneof![
+        4 => (0..HALF, prop::bool::weighted(0.05)).prop_map(|(left, torn)| Step::Write { left, torn }),
+        4 => Just(Step::Boundary),
+        1 => Just(Step::Pending),
+    ]
+}
+
+proptest! {
+    /// Random writers against the DMA: every half played holds its own words or
+    /// idle (lead and rest), the gate goes off in every half that is not wholly its
+    /// own from half 2 on, a writer that writes on time after a stall plays fresh
+    /// words again within two boundaries, and `missed` counts the misses.
+    #[test]
+    fn never_plays_another_halfs_words(steps in proptest::collection::vec(step(), 0..400)) {
+        let mut g = RingGuard::new();
+        let mut ring = Ring::new();
+        let mut next = 2u64;
+        let mut misses = 0u32;
+        for s in steps {
+            match s {
+                Step::Boundary => {
+                    let (p, lead, body, a) = boundary(&mut g, &mut ring);
+                    prop_assert!(fresh_or_idle(p, lead), "half {} lead {:?}", p, lead);
+                    prop_assert!(fresh_or_idle(p, body), "half {} body {:?}", p, body);
+                    let own = lead == Words::Of(p) && body == Words::Of(p);
+                    if p >= 2 && !own {
+                        prop_assert!(a.gate_off);
+                    }
+                    if a.gate_off {
+                        misses += 1;
+                        prop_assert!(!own);
+                    }
+                    prop_assert_eq!(g.missed(), misses);
+                }
+                Step::Pending => {
+                    let other = ((g.playing() + 1) % 2) as usize;
+                    prop_assert_eq!(g.claim(next, other, HALF, MARGIN), Claim::Wait);
+                }
+                Step::Write { left, torn } => {
+                    let dma = (g.playing() % 2) as usize;
+                    let mut granted = false;
+                    for _ in 0..2 {
+                        match g.claim(next, dma, left, MARGIN) {
+                            Claim::Granted => {
+                                granted = true;
+                                break;
+                            }
+                            Claim::Late { next: n } => {
+                                prop_assert!(n > next);
+                                prop_assert!(n > g.playing());
+                                next = n;
+                            }
+                            Claim::Wait => break,
+                        }
+                    }
+                    if !granted {
+                        continue;
+                    }
+                    prop_assert_eq!(next, g.playing() + 1);
+                    prop_assert!(left >= MARGIN);
+                    if torn {
+                        // The DMA enters the claimed half mid-copy.
+                        let (p, lead, body, a) = boundary(&mut g, &mut ring);
+                        prop_assert_eq!(p, next);
+                        prop_assert!(fresh_or_idle(p, lead) && fresh_or_idle(p, body));
+                        prop_assert!(a.gate_off);
+                        misses += 1;
+                        ring.write(next);
+                        prop_assert_eq!(g.fill(next), Fill::Torn);
+                        // The writer blanks the whole half again (behind the DMA
+                        // harmless, in front of it what it has not played yet).
+                        let s = (next % 2) as usize;
+                        ring.lead[s] = Words::Idle;
+                        ring.body[s] = Words::Idle;
+                    } else {
+                        ring.write(next);
+                        prop_assert_eq!(g.fill(next), Fill::Done);
+                        // Written halves play as written at their boundary.
+                        let (p, lead, body, a) = boundary(&mut g, &mut ring);
+                        prop_assert_eq!((p, lead, body), (next, Words::Of(next), Words::Of(next)));
+                        prop_assert!(!a.gate_off);
+                    }
+                    next += 1;
+                }
+            }
+        }
+    }
+
+    /// Catch-up: after a stall of any length, a writer on time plays its own words
+    /// from the second boundary on.
+    #[test]
+    fn resumes_within_two_boundaries(before in 0usize..10, stall in 0usize..20, left in 0..HALF) {
+        let mut g = RingGuard::new();
+        let mut ring = Ring::new();
+        let mut next = 2;
+        g.boundary();
+        for _ in 0..before {
+            writer_on_time(&mut g, &mut ring, &mut next);
+            boundary(&mut g, &mut ring);
+        }
+        for _ in 0..stall {
+            boundary(&mut g, &mut ring);
+        }
+        // Back: claim at wherever the DMA is (`left` words before its boundary).
+        // A late claim moves on to the half after the next and waits one
+        // boundary for it; then it is granted with the whole half left.
+        let back_at = g.playing();
+        let mut waited = 0;
+        loop {
+            let dma = (g.playing() % 2) as usize;
+            let room = if waited == 0 { left } else { HALF };
+            match g.claim(next, dma, room, MARGIN) {
+                Claim::Granted => break,
+                Claim::Late { next: n } => {
+                    prop_assert!(n > next);
+                    prop_assert_eq!(n, g.playing() + 2);
+                    next = n;
+                }
+                Claim::Wait => {
+                    prop_assert!(waited == 0);
+                    waited += 1;
+                    boundary(&mut g, &mut ring);
+                }
+            }
+        }
+        prop_assert!(g.playing() <= back_at + 1);
+        prop_assert_eq!(next, g.playing() + 1);
+        ring.write(next);
+        prop_assert_eq!(g.fill(next), Fill::Done);
+        let (p, lead, body, a) = boundary(&mut g, &mut ring);
+        prop_assert_eq!((p, lead, body), (next, Words::Of(next), Words::Of(next)));
+        prop_assert!(!a.gate_off);
+    }
+}
