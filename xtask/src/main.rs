@@ -213,8 +213,18 @@ fn child_lane(name: &str) -> Result {
 
 /// The host lane: host clippy, the host tests, the added-latency table.
 fn host_lane() -> Result {
+    // Linted under the host tests' profile: the build scripts and proc macros
+    // (`syn`, `serde_derive`, `clap_derive`, ...) are then the same units for both
+    // steps and built once (no code of ours depends on `debug_assertions`).
     let host_clippy = with_packages(
-        vec!["clippy", "--target", HOST, "--all-targets"],
+        vec![
+            "clippy",
+            "--profile",
+            HOST_PROFILE,
+            "--target",
+            HOST,
+            "--all-targets",
+        ],
         HOST_PACKAGES,
     );
     cargo(&[host_clippy.as_slice(), DENY_WARNINGS].concat())?;
