@@ -25,45 +25,40 @@ pub struct Lane {
     started: Instant,
 }
 
-/// Starts a child lane.
-fn spawn(name: &'static str, what: &str) -> Result<Lane> {
-    let dir = root().join("target");
-    fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
-    let log = dir.join(format!("xtask-{name}.log"));
-    let times = dir.join(format!("xtask-{name}.times"));
-    let _ = fs::remove_file(&times);
-    let out =
-        fs::File::create(&log).map_err(|e| format!("cannot create {}: {e}", log.display()))?;
-    let err = out.try_clone().map_err(|e| e.to_string())?;
-    let exe = std::env::current_exe().map_err(|e| format!("cannot find xtask: {e}"))?;
-    eprintln!(
-        "\n==> {name} lane started ({what}), output in {}",
-        log.display()
-    );
-    let child = Command::new(exe)
-        .args(["test-lane", name])
-        .env(timing::FILE_VAR, &times)
-        // Not in the terminal's foreground group: it must never read the terminal.
-        .stdin(Stdio::null())
-        .stdout(out)
-        .stderr(err)
-        .process_group(0)
-        .spawn()
-        .map_err(|e| format!("cannot start the {name} lane: {e}"))?;
-    Ok(Lane {
-        name,
-        child,
-        status: None,
-        log,
-        times,
-        started: Instant::now(),
-    })
-}
-
 impl Lane {
     /// Starts `xtask test-lane <name>`; `what` says what it runs, for the log.
     pub fn start(name: &'static str, what: &str) -> Result<Self> {
-        spawn(name, what)
+        let dir = root().join("target");
+        fs::create_dir_all(&dir).map_err(|e| format!("cannot create {}: {e}", dir.display()))?;
+        let log = dir.join(format!("xtask-{name}.log"));
+        let times = dir.join(format!("xtask-{name}.times"));
+        let _ = fs::remove_file(&times);
+        let out =
+            fs::File::create(&log).map_err(|e| format!("cannot create {}: {e}", log.display()))?;
+        let err = out.try_clone().map_err(|e| e.to_string())?;
+        let exe = std::env::current_exe().map_err(|e| format!("cannot find xtask: {e}"))?;
+        eprintln!(
+            "\n==> {name} lane started ({what}), output in {}",
+            log.display()
+        );
+        let child = Command::new(exe)
+            .args(["test-lane", name])
+            .env(timing::FILE_VAR, &times)
+            // Not in the terminal's foreground group: it must never read the terminal.
+            .stdin(Stdio::null())
+            .stdout(out)
+            .stderr(err)
+            .process_group(0)
+            .spawn()
+            .map_err(|e| format!("cannot start the {name} lane: {e}"))?;
+        Ok(Lane {
+            name,
+            child,
+            status: None,
+            log,
+            times,
+            started: Instant::now(),
+        })
     }
 
     /// Stops the child's whole process group.
