@@ -49,7 +49,9 @@ fn cargo_fuzz(args: &[&str], log: Option<&std::path::Path>) -> Result {
     let status = cmd
         .status()
         .map_err(|e| format!("cannot start cargo: {e}"))?;
-    eprintln!("    ({:.1} s)", started.elapsed().as_secs_f64());
+    let seconds = started.elapsed().as_secs_f64();
+    eprintln!("    ({seconds:.1} s)");
+    crate::timing::record(&format!("cargo +nightly fuzz {}", args.join(" ")), seconds);
     if status.success() {
         return Ok(());
     }

@@ -5,7 +5,7 @@
 //! the firmware ELF's section sizes, and clear failure messages; one small Rust
 //! program does all of that on any machine with cargo.
 //!
-//! Steps, in order (each stops the run on failure):
+//! Steps (any failure fails the run; the lanes below say what runs beside what):
 //! 1. `rustfmt` check of the whole workspace.
 //! 2. clippy `-D warnings` for the host crates (all targets) and for the MCU target
 //!    (firmware, `shared` with `defmt`, and `cm7`).
@@ -18,6 +18,18 @@
 //!    instruction counts against the budget (`qemu.rs`, `bench.rs`), and a check that
 //!    the per-function profile (`cargo xtask profile`, `profile.rs`) adds up to them.
 //! 6. A few seconds of every cargo-fuzz target (`fuzz.rs`).
+//!
+//! The steps run in three lanes, each in its own build directories so none waits for
+//! another's cargo lock. After the format check, this process starts two children
+//! (`xtask test-lane host|side`) and runs the *MCU lane* itself: MCU clippy, step 4.
+//! The *host lane*: host clippy, step 3. The *side lane*: `cm7` clippy, steps 5, 6.
+//! Why: on two cores one lane alone leaves a core idle much of the time (the
+//! firmware and HIL builds are single-crate release builds with fat LTO and one
+//! codegen unit; tests, QEMU and libFuzzer are mostly single-threaded); three lanes
+//! keep both busy. A child's output goes to `target/xtask-<lane>.log` and is printed
+//! after the MCU lane; a failed lane stops the others. Every step's wall time is
+//! printed as it ends and again, slowest first, at the end of the run (`timing.rs`);
+//! under three lanes a step's time includes waiting for a core.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -29,11 +41,15 @@ mod fuzz;
 mod placement;
 mod profile;
 mod qemu;
+mod side;
+mod timing;
 
 /// The host target the host crates are built for (the workspace default is the MCU).
 const HOST: &str = "x86_64-unknown-linux-gnu";
 /// The MCU target.
 pub(crate) const MCU: &str = "thumbv7em-none-eabihf";
+/// The cargo profile of the host crates' tests and tools (root `Cargo.toml`).
+const HOST_PROFILE: &str = "host-test";
 /// Host-side packages.
 const HOST_PACKAGES: &[&str] = &["xy-bridge-shared", "host-tests", "xtask"];
 /// Clippy's trailing arguments: every warning is an error.
@@ -66,6 +82,7 @@ fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
         Some("test") => test_all(),
+        Some("test-lane") => child_lane(args.get(1).map_or("", String::as_str)),
         Some("size") => firmware_size(),
         Some("qemu") => qemu::run(),
         Some("fuzz") => fuzz::run(),
@@ -107,18 +124,44 @@ fn cargo(args: &[&str]) -> Result {
 /// [`cargo`] with extra environment variables for the child.
 fn cargo_env(args: &[&str], env: &[(&str, &str)]) -> Result {
     let started = Instant::now();
-    eprintln!("\n==> cargo {}", args.join(" "));
+    let shown: String = env
+        .iter()
+        .map(|(k, v)| format!("{k}={v} "))
+        .chain(std::iter::once(format!("cargo {}", args.join(" "))))
+        .collect();
+    eprintln!("\n==> {shown}");
     let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
         .args(args)
         .envs(env.iter().copied())
         .current_dir(root())
         .status()
         .map_err(|e| format!("cannot start cargo: {e}"))?;
-    eprintln!("    ({:.1} s)", started.elapsed().as_secs_f64());
+    let seconds = started.elapsed().as_secs_f64();
+    eprintln!("    ({seconds:.1} s)");
+    timing::record(&shown, seconds);
     if status.success() {
         Ok(())
     } else {
         Err(format!("`cargo {}` exited with {status}", args.join(" ")))
+    }
+}
+
+/// Runs a program built by an earlier step, echoing it and its duration like [`cargo`].
+fn run_timed(program: &Path) -> Result {
+    let started = Instant::now();
+    let shown = program.display().to_string();
+    eprintln!("\n==> {shown}");
+    let status = Command::new(program)
+        .current_dir(root())
+        .status()
+        .map_err(|e| format!("cannot start {shown}: {e}"))?;
+    let seconds = started.elapsed().as_secs_f64();
+    eprintln!("    ({seconds:.1} s)");
+    timing::record(&shown, seconds);
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!("`{shown}` exited with {status}"))
     }
 }
 
@@ -137,25 +180,62 @@ fn test_all() -> Result {
     for manifest in [qemu::CM7_MANIFEST, "fuzz/Cargo.toml"] {
         cargo(&["fmt", "--manifest-path", manifest, "--", "--check"])?;
     }
+    let mut lanes = [
+        side::Lane::start("host", "host clippy, host tests, pipeline latency")?,
+        side::Lane::start("side", "cm7 clippy, QEMU tests and bench, fuzz")?,
+    ];
+    let main = mcu_lane(&mut lanes);
+    // A red lane stops the others at once rather than waiting minutes for them.
+    let results: Vec<Result> = lanes
+        .into_iter()
+        .map(|lane| lane.finish(main.is_err()))
+        .collect();
+    let total = started.elapsed().as_secs_f64();
+    eprint!("{}", timing::summary(total));
+    main?;
+    results.into_iter().collect::<Result<Vec<()>>>()?;
+    eprintln!("\nxtask: all checks passed in {total:.0} s");
+    Ok(())
+}
 
+/// Runs the steps of one child lane (`xtask test-lane <name>`, see the module doc).
+fn child_lane(name: &str) -> Result {
+    side::watch_parent();
+    let started = Instant::now();
+    let result = match name {
+        "host" => host_lane(),
+        "side" => side_lane(),
+        _ => Err(format!("no lane `{name}`")),
+    };
+    timing::record("lane, all its steps", started.elapsed().as_secs_f64());
+    result
+}
+
+/// The host lane: host clippy, the host tests, the added-latency table.
+fn host_lane() -> Result {
+    // Linted under the host tests' profile: the build scripts and proc macros
+    // (`syn`, `serde_derive`, `clap_derive`, ...) are then the same units for both
+    // steps and built once (no code of ours depends on `debug_assertions`).
     let host_clippy = with_packages(
-        vec!["clippy", "--target", HOST, "--all-targets"],
+        vec![
+            "clippy",
+            "--profile",
+            HOST_PROFILE,
+            "--target",
+            HOST,
+            "--all-targets",
+        ],
         HOST_PACKAGES,
     );
     cargo(&[host_clippy.as_slice(), DENY_WARNINGS].concat())?;
-    let mcu_clippy = ["clippy", "--release", "--target", MCU];
-    // `--tests` covers the HIL self-test binary (firmware/hil, harness = false).
-    cargo(&[&mcu_clippy[..], &["--bins", "--tests"], DENY_WARNINGS].concat())?;
-    let shared = ["-p", "xy-bridge-shared", "--features", "defmt"];
-    cargo(&[&mcu_clippy[..], &shared, DENY_WARNINGS].concat())?;
-    let cm7 = [
-        &["--manifest-path", qemu::CM7_MANIFEST][..],
-        &["--lib", "--bins"],
-    ]
-    .concat();
-    cargo(&[&mcu_clippy[..], &cm7, DENY_WARNINGS].concat())?;
 
-    let host_test = with_packages(vec!["test", "--release", "--target", HOST], HOST_PACKAGES);
+    // The host profile (root `Cargo.toml`): release optimisation without the
+    // firmware's fat LTO, single codegen unit and debug info, which cost minutes of
+    // compile time here and buy nothing for host tests.
+    let host_test = with_packages(
+        vec!["test", "--profile", HOST_PROFILE, "--target", HOST],
+        HOST_PACKAGES,
+    );
     // Property tests draw their cases from a fixed seed unless the caller sets one:
     // a red run is then reproducible from its log, and a green commit stays green
     // on a clean clone. Exploring new cases is a deliberate act
@@ -164,18 +244,42 @@ fn test_all() -> Result {
     eprintln!("    ({PROPTEST_SEED_VAR}={seed})");
     cargo_env(&host_test, &[(PROPTEST_SEED_VAR, &seed)])?;
     // The bridge's added latency per pairing, on the host pipeline (a few seconds).
-    cargo(&[
-        "run",
-        "--release",
-        "--target",
-        HOST,
-        "-p",
-        "host-tests",
-        "--bin",
-        "pipeline-latency",
-    ])?;
+    // The binary the test build just made (cargo builds a package's binaries for its
+    // integration tests): a `cargo run` would build `host-tests` a second time, with
+    // the dependency features of a non-test build (~25 s on a cold machine).
+    let latency = root()
+        .join("target")
+        .join(HOST)
+        .join(HOST_PROFILE)
+        .join("pipeline-latency");
+    run_timed(&latency)
+}
+
+/// The side lane: `cm7`'s lint, the QEMU tests and bench, the fuzz smoke runs.
+fn side_lane() -> Result {
+    let mcu_clippy = ["clippy", "--release", "--target", MCU];
+    let cm7 = [
+        &["--manifest-path", qemu::CM7_MANIFEST][..],
+        &["--lib", "--bins"],
+    ]
+    .concat();
+    cargo(&[&mcu_clippy[..], &cm7, DENY_WARNINGS].concat())?;
+    qemu::run()?;
+    fuzz::run()
+}
+
+/// The MCU lane, in this process: MCU clippy, the firmware and its size, the HIL
+/// images. Between steps it looks at the child lanes and stops when one failed.
+fn mcu_lane(lanes: &mut [side::Lane]) -> Result {
+    let mcu_clippy = ["clippy", "--release", "--target", MCU];
+    // `--tests` covers the HIL self-test binary (firmware/hil, harness = false).
+    cargo(&[&mcu_clippy[..], &["--bins", "--tests"], DENY_WARNINGS].concat())?;
+    let shared = ["-p", "xy-bridge-shared", "--features", "defmt"];
+    cargo(&[&mcu_clippy[..], &shared, DENY_WARNINGS].concat())?;
+    side::check(lanes)?;
 
     firmware_size()?;
+    side::check(lanes)?;
     // The hardware-in-the-loop tests need a board to run, but must always build.
     cargo(&["build", "--release", "--target", MCU, "--test", "hil"])?;
     let baked = std::env::var(CONFIG_VAR).unwrap_or_else(|_| "bridge.toml".into());
@@ -183,6 +287,7 @@ fn test_all() -> Result {
     // The other pairings' images: lint and build (the crate is rebuilt for each
     // baked configuration; the dependencies are not), same placement rules.
     for config in HIL_PAIRINGS {
+        side::check(lanes)?;
         let env = [(CONFIG_VAR, *config)];
         cargo_env(
             &[&mcu_clippy[..], &["--tests"], DENY_WARNINGS].concat(),
@@ -194,12 +299,6 @@ fn test_all() -> Result {
         )?;
         hil_placement(config)?;
     }
-    qemu::run()?;
-    fuzz::run()?;
-    eprintln!(
-        "\nxtask: all checks passed in {:.0} s",
-        started.elapsed().as_secs_f64()
-    );
     Ok(())
 }
 

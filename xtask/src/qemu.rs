@@ -88,6 +88,7 @@ fn build_plugin() -> Result<PathBuf> {
         src.display(),
         out.display()
     );
+    let started = Instant::now();
     let status = Command::new("gcc")
         .args([
             "-shared",
@@ -103,6 +104,7 @@ fn build_plugin() -> Result<PathBuf> {
         .arg(&out)
         .status()
         .map_err(|e| format!("cannot start gcc (install it: .ci/run does): {e}"))?;
+    crate::timing::record("gcc (QEMU plugin)", started.elapsed().as_secs_f64());
     if status.success() {
         Ok(out)
     } else {
@@ -177,7 +179,9 @@ fn qemu(elf: &Path, extra: &[&str], name: &str) -> Result<Run> {
         }
         std::thread::sleep(Duration::from_millis(20));
     };
-    eprintln!("    ({:.1} s)", started.elapsed().as_secs_f64());
+    let seconds = started.elapsed().as_secs_f64();
+    eprintln!("    ({seconds:.1} s)");
+    crate::timing::record(&format!("qemu-system-arm ({name})"), seconds);
     let read =
         |p: &Path| fs::read_to_string(p).map_err(|e| format!("cannot read {}: {e}", p.display()));
     Ok(Run {
