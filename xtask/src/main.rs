@@ -123,41 +123,32 @@ fn cargo(args: &[&str]) -> Result {
 
 /// [`cargo`] with extra environment variables for the child.
 fn cargo_env(args: &[&str], env: &[(&str, &str)]) -> Result {
-    let started = Instant::now();
     let shown: String = env
         .iter()
         .map(|(k, v)| format!("{k}={v} "))
         .chain(std::iter::once(format!("cargo {}", args.join(" "))))
         .collect();
-    eprintln!("\n==> {shown}");
-    let status = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()))
-        .args(args)
-        .envs(env.iter().copied())
-        .current_dir(root())
-        .status()
-        .map_err(|e| format!("cannot start cargo: {e}"))?;
-    let seconds = started.elapsed().as_secs_f64();
-    eprintln!("    ({seconds:.1} s)");
-    timing::record(&shown, seconds);
-    if status.success() {
-        Ok(())
-    } else {
-        Err(format!("`cargo {}` exited with {status}", args.join(" ")))
-    }
+    let mut command = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    command.args(args).envs(env.iter().copied());
+    run_recorded(command, &shown)
 }
 
 /// Runs a program built by an earlier step, echoing it and its duration like [`cargo`].
 fn run_timed(program: &Path) -> Result {
+    run_recorded(Command::new(program), &program.display().to_string())
+}
+
+/// Runs `command` in the workspace root, echoing `shown` and recording its wall time.
+fn run_recorded(mut command: Command, shown: &str) -> Result {
     let started = Instant::now();
-    let shown = program.display().to_string();
     eprintln!("\n==> {shown}");
-    let status = Command::new(program)
+    let status = command
         .current_dir(root())
         .status()
         .map_err(|e| format!("cannot start {shown}: {e}"))?;
     let seconds = started.elapsed().as_secs_f64();
     eprintln!("    ({seconds:.1} s)");
-    timing::record(&shown, seconds);
+    timing::record(shown, seconds);
     if status.success() {
         Ok(())
     } else {
