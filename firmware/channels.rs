@@ -190,15 +190,46 @@ pub static HEAD_STATUS: Watch<CriticalSectionRawMutex, HeadStatus, 2> = Watch::n
 pub static LASER_GATE: Mutex<CriticalSectionRawMutex, RefCell<Option<Output<'static>>>> =
     Mutex::new(RefCell::new(None));
 
-/// Drives the laser gate, if it has been handed over. On is refused while the
-/// waveform output's guard reports a missed half (`wave_out::laser_gate_allowed`:
-/// the head gets idle words, the guard turned the gate off, and only the bridge's
+/// Set by an output ring guard (the waveform heads' `drivers::wave_out`, the
+/// HANS-100 head's `drivers::serial_tx`) when its DMA reached output the bridge had
+/// not refreshed in time (the guard turned the gate off; the head gets idle words or
+/// no frames); [`laser_gate_allowed`] refuses the gate until the bridge has
+/// restarted its gate rule and cleared it ([`clear_output_stale`]). One flag for both
+/// guards: an image drives one head.
+static OUTPUT_STALE: AtomicBool = AtomicBool::new(false);
+
+/// False while an output ring guard reports a missed refresh and the bridge has not
+/// yet restarted its gate rule: the laser gate must stay off. Read under the laser
+/// gate's lock, so a guard (which runs above it) cannot turn the gate off between
+/// this check and a gate-on write.
+pub fn laser_gate_allowed() -> bool {
+    !OUTPUT_STALE.load(Ordering::Acquire)
+}
+
+/// An output ring guard's miss, from its P0 interrupt: the gate pin straight low
+/// (BSRR: atomic, no lock, RM0433 §11.4.7), then the flag the gate-on path checks.
+pub fn output_stale_gate_off() {
+    embassy_stm32::pac::GPIOF
+        .bsrr()
+        .write(|w| w.set_br(crate::board::LASER_GATE_PIN, true));
+    OUTPUT_STALE.store(true, Ordering::Release);
+}
+
+/// The bridge restarted its gate rule after a guard's miss (or a new output starts):
+/// the gate may open again by that rule.
+pub fn clear_output_stale() {
+    OUTPUT_STALE.store(false, Ordering::Release);
+}
+
+/// Drives the laser gate, if it has been handed over. On is refused while an
+/// output ring guard reports a missed refresh ([`laser_gate_allowed`]: the head gets
+/// idle words or no frames, the guard turned the gate off, and only the bridge's
 /// gate rule restarted after the underrun may open it again). The check is under
 /// the gate's lock, so the guard cannot close the gate between it and the write.
 pub fn set_laser_gate(on: bool) {
     LASER_GATE.lock(|g| {
         if let Some(pin) = g.borrow_mut().as_mut() {
-            let on = on && crate::drivers::wave_out::laser_gate_allowed();
+            let on = on && laser_gate_allowed();
             pin.set_level(on.into());
         }
     });

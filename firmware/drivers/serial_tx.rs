@@ -30,7 +30,38 @@
 //! (RM0433 §15.5.6). The SAI FIFO (8 words) plus the shift register hold up to 9
 //! bytes between the DMA position and the wire, i.e. less than one 125-bit slot: the
 //! slot two ahead of the DMA position is never on the wire or in the FIFO.
+//!
+//! # No stale frames at the head (the slot ring guard)
+//! A circular stream never stops by itself (RM0433 §15.3 "DMA functional
+//! description", "Circular mode": NDTR is reloaded at the end of each lap and the
+//! requests go on being served from the first address), so a bridge loop that stalls
+//! would let the SAI play the last lap's frames again, lap after lap. The HANS-100
+//! head's ring (DMA2 stream 3) is guarded ([`SerialTx::arm_head_guard`]); the
+//! decision is `shared::bridge::slot_guard` (host-tested):
+//! - [`HeadGuardHandler`] is bound on the stream's vector beside embassy's handler
+//!   (`tasks::Irqs`) and runs at P0 on the half-transfer (HTIF, enabled here: the
+//!   circular `Transfer` enables only TCIE) and transfer-complete (TCIF) interrupts
+//!   (§15.5.1 / §15.5.2, DMA_LISR / DMA_HISR; DMA_SxCR.HTIE §15.5.5): every 40 us
+//!   (62 / 63 bytes). From NDTR (§15.5.6) and its lap count it knows the DMA's
+//!   absolute byte; it sets every slot the DMA has wholly fetched since its last run
+//!   to zero bits (`shared::hans::frame::blank_slot`, bit-level: the half boundary
+//!   cuts slots 3 / 4 inside byte 62), unless the writer already wrote that ring
+//!   slot for its next lap. Zeros carry no start marker: the head decodes no frame.
+//!   A slot is blanked at most a half after the DMA left it and fetched again 70 us
+//!   after, so the DMA only ever fetches a frame written for this lap, or zeros.
+//! - The writer ([`SerialTx::update_guarded`]) reads NDTR, writes and publishes the
+//!   slot's absolute number in one critical section (~1 us), so the guard sees a
+//!   write wholly or not at all. If at a guard run the slot the DMA fetches was not
+//!   written for this lap, the guard drives the laser gate pin low and raises
+//!   `channels`' stale flag (the waveform guard's: one mechanism), which refuses the
+//!   gate until the bridge has restarted its gate rule
+//!   ([`SerialTx::clear_stale_if`] after [`SerialTx::head_misses`] changed).
+//! - Bound: no frame older than this lap ever plays; a stall shows as up to ~40 us
+//!   of no frames with the gate still on, then the gate drops (a slot-rate check
+//!   would need a 10 us timer interrupt). Cost: a few compares and up to five slot
+//!   blanks (16 byte stores each) per half.
 
+use core::cell::RefCell;
 use core::marker::PhantomData;
 
 use embassy_stm32::dma::{Channel, InterruptHandler, Transfer, TransferOptions};
@@ -40,7 +71,10 @@ use embassy_stm32::pac::sai::vals::{
 };
 use embassy_stm32::sai::{Dma, SdPin, SubBlockInstance};
 use embassy_stm32::{interrupt, pac, peripherals, rcc, Peri};
-use shared::hans::frame::{write_slot, DecodeError, Frame, RING_BYTES, RING_SLOTS};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::blocking_mutex::Mutex;
+use shared::bridge::slot_guard::SlotGuard;
+use shared::hans::frame::{blank_slot, write_slot, DecodeError, Frame, RING_BYTES, RING_SLOTS};
 use shared::hans::tx::LEAD_SLOTS;
 
 /// An SAI instance this driver can run.
@@ -74,6 +108,57 @@ impl SubBlock for embassy_stm32::sai::A {
 }
 impl SubBlock for embassy_stm32::sai::B {
     const INDEX: usize = 1;
+}
+
+/// The HANS-100 head ring's stream (DMA2 stream 3, `board::HansOutRes`).
+const HEAD_STREAM: usize = 3;
+
+/// The head ring guard's state (module docs, "No stale frames"): the decision and
+/// the ring's address (0: no guarded ring, the handler does nothing).
+struct HeadGuard {
+    guard: SlotGuard,
+    ring: usize,
+}
+
+static HEAD_GUARD: Mutex<CriticalSectionRawMutex, RefCell<HeadGuard>> =
+    Mutex::new(RefCell::new(HeadGuard {
+        guard: SlotGuard::new(),
+        ring: 0,
+    }));
+
+/// The head ring guard (module docs, "No stale frames"): bound on DMA2 stream 3
+/// beside embassy's handler (`tasks::Irqs`), it runs at every half-transfer and
+/// transfer-complete interrupt of the head's stream, at P0.
+pub struct HeadGuardHandler;
+
+impl interrupt::typelevel::Handler<interrupt::typelevel::DMA2_STREAM3> for HeadGuardHandler {
+    unsafe fn on_interrupt() {
+        HEAD_GUARD.lock(|g| {
+            let mut g = g.borrow_mut();
+            if g.ring == 0 {
+                return;
+            }
+            let ndtr = pac::DMA2.st(HEAD_STREAM).ndtr().read().ndt() as usize;
+            let act = g.guard.run(ring_pos(ndtr));
+            // SAFETY: the address of the running ring (set by `arm_head_guard`, which
+            // the ring's `SerialTx` outlives: `Drop` unsets it); the writer writes it
+            // only under this lock, the DMA only reads it.
+            let ring = unsafe { &mut *(g.ring as *mut [u8; RING_BYTES]) };
+            for slot in (0..RING_SLOTS).filter(|k| act.blank & (1 << k) != 0) {
+                // In range: `slot` < RING_SLOTS.
+                let _ = blank_slot(ring, slot);
+            }
+            if act.gate_off {
+                crate::channels::output_stale_gate_off();
+            }
+        });
+    }
+}
+
+/// The DMA's ring byte (0..RING_BYTES) from NDTR (bytes left in this lap, RM0433
+/// §15.5.6: `RING_BYTES` right after the reload).
+fn ring_pos(ndtr: usize) -> usize {
+    RING_BYTES.saturating_sub(ndtr) % RING_BYTES
 }
 
 /// A running circular serial transmitter.
@@ -208,6 +293,76 @@ impl<'a> SerialTx<'a> {
         })
     }
 
+    /// Guards this ring as the HANS-100 head's (module docs, "No stale frames"):
+    /// call once, right after [`SerialTx::new`] on DMA2 stream 3 with the ring still
+    /// zeros; from then on write it only through [`SerialTx::update_guarded`] and
+    /// [`SerialTx::stop_guarded`]. `irq` proves the guard's handler is bound.
+    pub fn arm_head_guard(
+        &mut self,
+        _irq: impl interrupt::typelevel::Binding<interrupt::typelevel::DMA2_STREAM3, HeadGuardHandler>,
+    ) {
+        let ring = self.ring as usize;
+        HEAD_GUARD.lock(|g| {
+            *g.borrow_mut() = HeadGuard {
+                guard: SlotGuard::new(),
+                ring,
+            }
+        });
+        crate::channels::clear_output_stale();
+        // HTIE may be set on the running stream (DMA_SxCR, RM0433 §15.5.5: only the
+        // configuration bits are locked while EN = 1); embassy's handler clears HTIF.
+        pac::DMA2.st(HEAD_STREAM).cr().modify(|w| w.set_htie(true));
+    }
+
+    /// Runs `f(ring, NDTR)` (it writes slots from that position, e.g.
+    /// `shared::hans::tx::Transmitter::update`, and returns the slot it wrote last)
+    /// and publishes the slot to the guard, all in one critical section (module
+    /// docs, "No stale frames").
+    pub fn update_guarded<E>(
+        &mut self,
+        f: impl FnOnce(&mut [u8; RING_BYTES], usize) -> Result<usize, E>,
+    ) -> Result<usize, E> {
+        let ring = self.ring;
+        let transfer = &self.transfer;
+        HEAD_GUARD.lock(|g| {
+            let remaining = transfer.get_remaining_transfers() as usize;
+            // SAFETY: as in `update`; the guard writes the ring only under this lock.
+            let r = f(unsafe { &mut *ring }, remaining);
+            if let Ok(slot) = r {
+                g.borrow_mut().guard.wrote(slot, ring_pos(remaining));
+            }
+            r
+        })
+    }
+
+    /// Sets the whole ring to zeros (the head decodes no frame) and tells the guard
+    /// that nothing is sent (no miss until the next [`SerialTx::update_guarded`]).
+    pub fn stop_guarded(&mut self) {
+        let ring = self.ring;
+        HEAD_GUARD.lock(|g| {
+            // SAFETY: as in `update`.
+            unsafe { &mut *ring }.fill(0);
+            g.borrow_mut().guard.stop();
+        });
+    }
+
+    /// Misses of the head ring guard so far (wrapping): when this changes, restart
+    /// the gate rule, then [`SerialTx::clear_stale_if`] with the new count.
+    pub fn head_misses(&self) -> u32 {
+        HEAD_GUARD.lock(|g| g.borrow().guard.missed())
+    }
+
+    /// Lets the laser gate open again (by the bridge's rule) unless the guard has
+    /// missed again since `seen` (checked under the guard's lock: a new miss keeps
+    /// the gate refused).
+    pub fn clear_stale_if(&mut self, seen: u32) {
+        HEAD_GUARD.lock(|g| {
+            if g.borrow().guard.clear_if(seen) {
+                crate::channels::clear_output_stale();
+            }
+        });
+    }
+
     /// True while the SAI reports no underrun (SR.OVRUDR; cleared after reading).
     pub fn take_underrun(&mut self) -> bool {
         let underrun = self.ch.sr().read().ovrudr();
@@ -220,6 +375,13 @@ impl<'a> SerialTx<'a> {
 
 impl Drop for SerialTx<'_> {
     fn drop(&mut self) {
+        let ring = self.ring as usize;
+        HEAD_GUARD.lock(|g| {
+            let mut g = g.borrow_mut();
+            if g.ring == ring {
+                g.ring = 0;
+            }
+        });
         self.ch.cr1().modify(|w| {
             w.set_saien(false);
             w.set_dmaen(false);

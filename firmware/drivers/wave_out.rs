@@ -109,7 +109,7 @@
 
 use core::cell::RefCell;
 use core::future::poll_fn;
-use core::sync::atomic::{compiler_fence, AtomicBool, Ordering};
+use core::sync::atomic::{compiler_fence, Ordering};
 use core::task::Poll;
 
 use embassy_stm32::dma::{
@@ -125,7 +125,7 @@ use embassy_sync::blocking_mutex::Mutex;
 use embassy_sync::waitqueue::AtomicWaker;
 use shared::bridge::ring_guard::{Claim, Fill, RingGuard, LEAD_WORDS};
 
-use crate::board::LASER_GATE_PIN;
+use crate::channels::{clear_output_stale, output_stale_gate_off};
 
 /// The output stream (board allocation: DMA2 stream 1, the type of `new`'s `dma`).
 const OUT_STREAM: usize = 1;
@@ -166,19 +166,6 @@ static GUARD: Mutex<CriticalSectionRawMutex, RefCell<Guarded>> =
     }));
 /// Woken by the guard at every boundary: the writer's next half may be free.
 static BOUNDARY: AtomicWaker = AtomicWaker::new();
-/// Set by the guard when the DMA entered a half the writer had not refilled (it
-/// turned the laser gate off); [`laser_gate_allowed`] refuses the gate until the
-/// writer has reported the underrun and cleared it ([`WaveOut::clear_stale`]).
-static STALE: AtomicBool = AtomicBool::new(false);
-
-/// False while the output plays idle words for a half the writer missed and the
-/// bridge has not yet restarted its gate rule ([`WaveOut::clear_stale`]): the laser
-/// gate must stay off. Read under the laser gate's lock, so the guard (which runs
-/// above it) cannot turn the gate off between this check and a gate-on write.
-pub fn laser_gate_allowed() -> bool {
-    !STALE.load(Ordering::Acquire)
-}
-
 /// The output ring guard (module docs, "No stale words"): bound on DMA2 stream 1
 /// beside embassy's handler (`tasks::Irqs`), it runs at every half-transfer and
 /// transfer-complete interrupt of the output stream, at P0.
@@ -236,9 +223,8 @@ fn on_boundary() {
         return;
     }
     if gate_off {
-        // Straight to the pin (BSRR: atomic), then the flag the gate-on path checks.
-        pac::GPIOF.bsrr().write(|w| w.set_br(LASER_GATE_PIN, true));
-        STALE.store(true, Ordering::Release);
+        // Straight to the pin, then the flag the gate-on path checks.
+        output_stale_gate_off();
     }
     // Outside the lock: the writer runs below this priority, so nothing else writes
     // the ring now; the blanks outrun the DMA (a store per cycle or two against a
@@ -456,7 +442,7 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
                 idle,
             }
         });
-        STALE.store(false, Ordering::Release);
+        clear_output_stale();
         // The stream waits for requests: none come before step 7.
         ring.start();
         // Step 5.
@@ -619,10 +605,10 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         Ok(())
     }
 
-    /// Clears the guard's stale flag ([`laser_gate_allowed`]): call after an
+    /// Clears the guard's stale flag (`channels::laser_gate_allowed`): call after an
     /// underrun, once the laser gate rule has restarted.
     pub fn clear_stale(&mut self) {
-        STALE.store(false, Ordering::Release);
+        clear_output_stale();
     }
 
     /// After an underrun: the next write goes to half `next`; the status samples

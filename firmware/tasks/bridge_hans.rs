@@ -16,6 +16,12 @@
 //! it sends nothing, the ring holds zeros: no start marker, so the head sees no frame
 //! at all (HANS-100 has no idle pattern of its own; repeating a frame would be a
 //! command to hold a position).
+//!
+//! No stale frames: the ring runs under the slot ring guard (`drivers::serial_tx`,
+//! "No stale frames"): a slot this loop did not write for the DMA's current lap is
+//! zeros, never the last lap's frame; if the loop falls behind the DMA the guard
+//! drops the laser gate, and the loop restarts its gate rule (as `bridge_wave_out`
+//! after an underrun) before the gate may open again.
 
 use embassy_stm32::gpio::Output;
 use embassy_time::{Duration, Instant, Ticker};
@@ -83,6 +89,8 @@ pub async fn bridge_hans_out(
     let ring = dma_ring!(".sram2", u8, RING_BYTES);
     let mut channel = None;
     let mut out = SerialTx::new(r.sai, r.sd, r.dma, Irqs, &mut channel, ring);
+    out.arm_head_guard(Irqs);
+    let mut misses = out.head_misses();
     head_enable.set_high();
     defmt::info!("bridge: {} -> HANS-100, 100000 Hz frames", controller);
 
@@ -144,8 +152,10 @@ pub async fn bridge_hans_out(
         match newest.flatten() {
             Some(f) => match Frame::from_forward(&f, &hold) {
                 Ok(frame) => {
-                    let remaining = out.remaining();
-                    if out.update(|buf| tx.update(buf, remaining, &frame)).is_ok() {
+                    if out
+                        .update_guarded(|buf, remaining| tx.update(buf, remaining, &frame))
+                        .is_ok()
+                    {
                         Stats::bump(&STATS.output_frames);
                         hold = frame;
                         line_idle = false;
@@ -157,11 +167,20 @@ pub async fn bridge_hans_out(
             None if !line_idle => {
                 // Stop: from now on the head sees no frame (a frame cut by this is
                 // incomplete and fails the head's checks).
-                out.update(|buf| buf.fill(0));
+                out.stop_guarded();
                 tx = Transmitter::new();
                 line_idle = true;
             }
             None => {}
+        }
+        // The guard found the DMA on a slot this loop had not written (it dropped
+        // the gate): the gate opens again only by the three-batch rule, restarted
+        // before the guard's refusal is lifted.
+        let now_misses = out.head_misses();
+        if now_misses != misses {
+            misses = now_misses;
+            core.restart_gate();
+            out.clear_stale_if(misses);
         }
         // The frame written now is sent two slots from now: `end_batch` keeps the
         // gate off until the slot being sent was computed with it on.

@@ -32,6 +32,7 @@ use core::sync::atomic::Ordering;
 use crate::channels::{
     set_laser_gate, Health, BRIDGE_BEAT, HEAD_FAULT, HEALTH, LASER_GATE, LINK_RUNNING, STATS,
 };
+use crate::drivers::serial_tx::HeadGuardHandler;
 use crate::drivers::sync_marks::SyncEdgeHandler;
 use crate::drivers::wave_out::RingGuardHandler;
 
@@ -52,7 +53,9 @@ bind_interrupts!(
         /// (`wave_out::RingGuardHandler`: no stale words at the head).
         DMA2_STREAM1 => dma::InterruptHandler<peripherals::DMA2_CH1>, RingGuardHandler;
         DMA2_STREAM2 => dma::InterruptHandler<peripherals::DMA2_CH2>;
-        DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>;
+        /// The HANS-100 head's stream: embassy's handler and the slot ring guard
+        /// (`serial_tx::HeadGuardHandler`: no stale frames at the head).
+        DMA2_STREAM3 => dma::InterruptHandler<peripherals::DMA2_CH3>, HeadGuardHandler;
         DMA2_STREAM4 => dma::InterruptHandler<peripherals::DMA2_CH4>;
         DMA2_STREAM5 => dma::InterruptHandler<peripherals::DMA2_CH5>;
         DMA2_STREAM6 => dma::InterruptHandler<peripherals::DMA2_CH6>;

@@ -98,6 +98,7 @@ pub mod pacing;
 pub mod ring_guard;
 #[cfg(feature = "serde")]
 pub mod serde_impl;
+pub mod slot_guard;
 pub mod status;
 mod supervision;
 mod translate;

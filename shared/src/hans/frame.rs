@@ -461,3 +461,23 @@ fn slot_offset(slot: usize) -> Result<usize, DecodeError> {
         })
     }
 }
+
+/// Sets slot `slot` (0..8) of the transmit ring to zero bits, touching only that
+/// slot's bits (a bit-level write: slots 3 and 4, 7 and 0 share no byte, but the
+/// ring's halves of 62.5 bytes split slots 3 / 4 inside byte 62, where the other
+/// slot may hold a frame just written). Zero bits carry no start marker: a
+/// receiver decodes no frame from a blanked slot (the ring guard,
+/// `bridge::slot_guard`).
+pub fn blank_slot(buf: &mut [u8; RING_BYTES], slot: usize) -> Result<(), DecodeError> {
+    let start = slot_offset(slot)?;
+    let end = start + FRAME_BITS;
+    let (first, last) = (start / 8, (end - 1) / 8);
+    for (i, byte) in buf.iter_mut().enumerate().take(last + 1).skip(first) {
+        // The bits of this byte inside the slot (MSB first: stream bit 8i is bit 7).
+        let lo = start.max(i * 8) - i * 8;
+        let hi = end.min(i * 8 + 8) - i * 8;
+        let mask = ((0xFFu16 >> lo) & (0xFF00u16 >> hi)) as u8;
+        *byte &= !mask;
+    }
+    Ok(())
+}

@@ -1,0 +1,179 @@
+//! The slot ring guard: a HANS-100 head is never sent a frame written for an
+//! earlier lap of its ring.
+//!
+//! The HANS-100 head's frames go out of a circular DMA ring of
+//! [`RING_SLOTS`] 125-bit slots (firmware `drivers/serial_tx.rs`, `tasks/bridge_hans.rs`):
+//! the bridge loop writes each slot two ahead of the DMA and the stream never stops
+//! by itself, so a loop that stalls would let the DMA play the frames of the last
+//! lap again (positions going back, the gate as it was). The waveform heads' guard
+//! ([`super::ring_guard`]) works on whole halves a writer claims; this ring is
+//! written slot by slot, so this sibling decides, sans I/O, in slot numbers:
+//!
+//! - Slots are numbered absolutely from the start of the run (`u64`: no wrap), ring
+//!   slot `n % RING_SLOTS` holds slot `n`; the DMA's absolute byte position is the
+//!   guard's lap count and DMA_SxNDTR ([`SlotGuard::fetched`]).
+//! - The writer publishes the slots it wrote ([`SlotGuard::wrote`]): `written` is one
+//!   past the newest. It reads the position and writes in one step the guard cannot
+//!   split (the firmware holds a critical section; a slot is ~16 stores).
+//! - At every guard run (the stream's half-transfer and transfer-complete
+//!   interrupts, [`SlotGuard::run`]) every slot the DMA has wholly fetched since the
+//!   last run is set to zero bits ([`crate::hans::frame::blank_slot`]: no start
+//!   marker, the head decodes no frame) unless the writer already wrote the slot
+//!   that takes its place next lap. A slot is blanked at most 40 us (a half) after
+//!   the DMA leaves it and played again 70 us after, so every slot the DMA enters
+//!   holds a frame written for this lap or zeros: never an old frame, whatever the
+//!   writer does.
+//! - If the slot the DMA is fetching was not written for this lap (`written` not
+//!   past it) while the writer is sending, the run is a **miss**: the laser gate
+//!   goes off and stays refused until the writer has restarted its gate rule.
+//!
+//! # Races (all host-tested)
+//! - The writer finishing as the guard runs: the two never interleave (above), so
+//!   the guard sees the write either wholly (the slot counts as written) or not at
+//!   all (the write then lands after the blanking, fresh for this lap).
+//! - Wrap-around: a position read while a transfer-complete is pending (NDTR
+//!   reloaded, the guard not yet run) is below the guard's last one: a lap on.
+//! - A far-behind writer: every run blanks what the DMA fetched (at most the whole
+//!   ring) and reports the miss once per stall; the writer's late write lands where
+//!   its slot number says, ahead of the DMA or (not published in time) on a slot
+//!   the guard blanks at its next run.
+//! - Resume: the first write re-arms the miss check; the DMA plays zeros until the
+//!   writer's first slot (two ahead).
+//!
+//! The guard runs every half (40 us), so a stall shows as up to ~40 us of no frames
+//! with the gate on before it drops (a slot-rate check would need a 10 us timer).
+
+use crate::hans::frame::{FRAME_BITS, RING_BYTES, RING_SLOTS};
+
+/// What a guard run must do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Actions {
+    /// Ring slots to set to zero bits: bit `k` is ring slot `k`.
+    pub blank: u8,
+    /// Turn the laser gate off and refuse it until the writer restarts its gate rule.
+    pub gate_off: bool,
+}
+
+/// The guard's state, shared by the writer and the guard interrupt (module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SlotGuard {
+    /// Whole laps of the ring the DMA has fetched, as of the last run.
+    laps: u64,
+    /// The DMA's byte position in the ring (0..RING_BYTES) at the last run.
+    pos: usize,
+    /// Every slot below this one was blanked after the DMA fetched it (or written
+    /// for its next lap first).
+    blanked: u64,
+    /// One past the newest slot the writer wrote.
+    written: u64,
+    /// The writer sends nothing (start-up, or the line stopped: the ring is zeros).
+    stopped: bool,
+    /// A miss was reported and the writer has not written since.
+    missing: bool,
+    /// Misses reported so far (wrapping).
+    missed: u32,
+}
+
+impl Default for SlotGuard {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SlotGuard {
+    /// At the start of a run: the ring holds zeros, the DMA is at byte 0.
+    pub const fn new() -> Self {
+        Self {
+            laps: 0,
+            pos: 0,
+            blanked: 0,
+            written: 0,
+            stopped: true,
+            missing: false,
+            missed: 0,
+        }
+    }
+
+    /// The DMA's absolute byte position, from `pos` (its ring byte, 0..RING_BYTES,
+    /// `RING_BYTES - NDTR`) read now: a position below the last run's is a lap on
+    /// (the transfer-complete run is pending).
+    pub fn fetched(&self, pos: usize) -> u64 {
+        let pos = pos.min(RING_BYTES - 1);
+        let laps = if pos < self.pos {
+            self.laps + 1
+        } else {
+            self.laps
+        };
+        laps * RING_BYTES as u64 + pos as u64
+    }
+
+    /// The absolute number of the slot the DMA is fetching at `pos` (its first slot
+    /// not wholly fetched).
+    pub fn dma_slot(&self, pos: usize) -> u64 {
+        self.fetched(pos) * 8 / FRAME_BITS as u64
+    }
+
+    /// Misses so far (wrapping): a writer that sees this change restarts its gate
+    /// rule, then [`SlotGuard::clear_if`].
+    pub fn missed(&self) -> u32 {
+        self.missed
+    }
+
+    /// Whether a miss stands (the gate refused) that the writer has not seen:
+    /// `seen` is the [`SlotGuard::missed`] count the writer acted on. The firmware
+    /// clears its refusal only when this is false, under the guard's lock.
+    pub fn clear_if(&self, seen: u32) -> bool {
+        self.missed == seen
+    }
+
+    /// The writer wrote ring slot `ring_slot` for the absolute slot it makes of it
+    /// at `pos` (the position it read before writing, in the same step): the first
+    /// slot with that ring index at or after the one the DMA fetched.
+    pub fn wrote(&mut self, ring_slot: usize, pos: usize) -> u64 {
+        let d = self.dma_slot(pos);
+        let ahead =
+            (ring_slot % RING_SLOTS + RING_SLOTS - (d % RING_SLOTS as u64) as usize) % RING_SLOTS;
+        let n = d + ahead as u64;
+        self.written = self.written.max(n + 1);
+        self.stopped = false;
+        self.missing = false;
+        n
+    }
+
+    /// The writer stopped sending and zeroed the ring: no miss until it writes again.
+    pub fn stop(&mut self) {
+        self.stopped = true;
+        self.missing = false;
+    }
+
+    /// A guard run with the DMA at ring byte `pos` (module docs). The caller carries
+    /// out the actions before anything else may write the ring.
+    pub fn run(&mut self, pos: usize) -> Actions {
+        let fetched = self.fetched(pos);
+        self.laps = fetched / RING_BYTES as u64;
+        self.pos = (fetched % RING_BYTES as u64) as usize;
+        let current = fetched * 8 / FRAME_BITS as u64;
+        let mut act = Actions::default();
+        // A run late by more than a lap (a stall of the interrupts above the tasks)
+        // still blanks every ring slot once.
+        let from = self.blanked.max(current.saturating_sub(RING_SLOTS as u64));
+        for s in from..current {
+            // Ring slot `s % 8` holds slot `s + 8` once the writer wrote that: fresh.
+            if self.written <= s + RING_SLOTS as u64 {
+                act.blank |= 1 << (s % RING_SLOTS as u64);
+            }
+        }
+        self.blanked = self.blanked.max(current);
+        if !self.stopped && self.written <= current {
+            act.gate_off = true;
+            if !self.missing {
+                self.missing = true;
+                self.missed = self.missed.wrapping_add(1);
+            }
+        }
+        act
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,435 @@
+//! Host tests of the slot ring guard: a model of the DMA, the writer (two slots
+//! ahead, as `tasks/bridge_hans.rs` with `hans::tx::Transmitter`) and the guard's
+//! runs, byte by byte; and the wire: a blanked slot is no frame for `hans::rx`.
+
+use super::*;
+use crate::hans::frame::{blank_slot, read_slot, write_slot, Frame};
+use crate::hans::rx::{HansRx, Mode, RxEvent};
+use proptest::prelude::*;
+
+/// Bytes per 10 us slot period (12.5 MHz bits): 15.625.
+const SLOT_BYTES: f64 = FRAME_BITS as f64 / 8.0;
+/// The ring byte at which the half-transfer interrupt comes (RM0433: half the
+/// items of the lap; 125 / 2 rounded down).
+const HALF: usize = RING_BYTES / 2;
+
+/// The ring as the model sees it: which absolute slot's frame each ring slot holds
+/// (`None`: zero bits).
+struct Model {
+    guard: SlotGuard,
+    ring: [Option<u64>; RING_SLOTS],
+    /// The writer's last ring slot (as `Transmitter::last`).
+    last: Option<usize>,
+    gate_offs: Vec<u64>,
+    /// Absolute slots the DMA entered with zero bits while the writer was sending.
+    blanks_played: Vec<u64>,
+    /// Absolute slots the writer wrote.
+    wrote: std::collections::BTreeSet<u64>,
+}
+
+impl Model {
+    fn new() -> Self {
+        Self {
+            guard: SlotGuard::new(),
+            ring: [None; RING_SLOTS],
+            last: None,
+            gate_offs: Vec::new(),
+            blanks_played: Vec::new(),
+            wrote: Default::default(),
+        }
+    }
+
+    fn run_guard(&mut self, fetched: u64) {
+        let a = self.guard.run((fetched % RING_BYTES as u64) as usize);
+        for k in 0..RING_SLOTS {
+            if a.blank & (1 << k) != 0 {
+                self.ring[k] = None;
+            }
+        }
+        if a.gate_off {
+            self.gate_offs.push(fetched);
+        }
+    }
+
+    /// One writer wake with the DMA at absolute byte `fetched` (read and write in
+    /// one step, as the firmware's critical section).
+    fn write(&mut self, fetched: u64) {
+        let pos = (fetched % RING_BYTES as u64) as usize;
+        let d = self.guard.dma_slot(pos);
+        assert_eq!(
+            d,
+            fetched * 8 / FRAME_BITS as u64,
+            "absolute slot at {fetched}"
+        );
+        let sending = (d % RING_SLOTS as u64) as usize;
+        let target = (sending + 2) % RING_SLOTS;
+        let mut slot = self.last.map_or(target, |l| (l + 1) % RING_SLOTS);
+        for _ in 0..RING_SLOTS {
+            let ahead = (slot + RING_SLOTS - sending) % RING_SLOTS;
+            if ahead >= 2 {
+                self.ring[slot] = Some(d + ahead as u64);
+                self.wrote.insert(d + ahead as u64);
+            }
+            if slot == target {
+                break;
+            }
+            slot = (slot + 1) % RING_SLOTS;
+        }
+        self.last = Some(target);
+        assert_eq!(self.guard.wrote(target, pos), d + 2);
+    }
+
+    /// The DMA fetches absolute byte `fetched`: every slot with bits in it must
+    /// hold its own frame or zeros.
+    fn fetch(&mut self, fetched: u64) {
+        let first = fetched * 8 / FRAME_BITS as u64;
+        let last = (fetched * 8 + 7) / FRAME_BITS as u64;
+        for s in first..=last {
+            let held = self.ring[(s % RING_SLOTS as u64) as usize];
+            assert!(
+                held.is_none() || held == Some(s),
+                "byte {fetched}: slot {s} holds slot {held:?}"
+            );
+            if held.is_none()
+                && (s * FRAME_BITS as u64).div_ceil(8) == fetched
+                && !self.blanks_played.contains(&s)
+            {
+                self.blanks_played.push(s);
+            }
+        }
+    }
+}
+
+/// Runs the model for `bytes` DMA bytes: the writer wakes every `wake` bytes
+/// (plus `jitter(k)` for its k-th wake) except in the `stalls` (byte ranges), the
+/// guard runs `latency` bytes after each half boundary.
+fn simulate(
+    bytes: u64,
+    wake: f64,
+    jitter: impl Fn(u64) -> f64,
+    stalls: &[(u64, u64)],
+    latency: u64,
+) -> Model {
+    let mut m = Model::new();
+    let mut next_wake = jitter(0);
+    let mut wakes = 0u64;
+    let mut pending_guard: Option<u64> = None;
+    for f in 0..bytes {
+        // The boundary: byte `f` is the first of a half.
+        let pos = (f % RING_BYTES as u64) as usize;
+        if f > 0 && (pos == 0 || pos == HALF) {
+            pending_guard = Some(f + latency);
+        }
+        if pending_guard == Some(f) {
+            m.run_guard(f);
+            pending_guard = None;
+        }
+        let stalled = stalls.iter().any(|&(a, b)| (a..b).contains(&f));
+        // The ticker's schedule is absolute (no drift); a stalled writer wakes as
+        // soon as the stall ends, then goes on with the schedule.
+        if f as f64 >= next_wake && !stalled {
+            m.write(f);
+            while next_wake <= f as f64 {
+                wakes += 1;
+                next_wake = wakes as f64 * wake + jitter(wakes);
+            }
+        }
+        m.fetch(f);
+    }
+    m
+}
+
+#[test]
+fn on_time_writer_plays_its_frames_and_keeps_the_gate() {
+    // Wakes every slot period: every slot after the first two plays its frame.
+    for phase in [0.0, 3.3, 7.9, 12.0] {
+        for latency in [0, 1, 3] {
+            let m = simulate(20_000, SLOT_BYTES, |_| phase, &[], latency);
+            assert!(
+                m.gate_offs.is_empty(),
+                "latency {latency}: {:?}",
+                m.gate_offs
+            );
+            assert_eq!(m.blanks_played, [0, 1], "phase {phase} latency {latency}");
+            assert_eq!(m.guard.missed(), 0);
+        }
+    }
+    // Late by up to 12.6 bytes (8 us of wake-up jitter): never a miss. A wake that
+    // finds the DMA two slots on skips the slot one ahead (`Transmitter::update`
+    // writes only slots two or more ahead): that slot now plays zeros (before the
+    // guard: the frame of a lap ago).
+    let m = simulate(20_000, SLOT_BYTES, |k| (k * 7 % 10) as f64 * 1.4, &[], 1);
+    assert!(m.gate_offs.is_empty(), "{:?}", m.gate_offs);
+    assert_eq!(m.guard.missed(), 0);
+    assert!(m.blanks_played.iter().all(|s| !m.wrote.contains(s)));
+    // Every other wake 20 bytes late (past the next slot boundary): the wake after
+    // it skips a slot. Zeros there, never a miss.
+    let m = simulate(20_000, SLOT_BYTES, |k| (k % 2) as f64 * 20.0, &[], 1);
+    assert!(m.gate_offs.is_empty(), "{:?}", m.gate_offs);
+    assert!(m.blanks_played.len() > 20, "{:?}", m.blanks_played);
+    assert!(m.blanks_played.iter().all(|s| !m.wrote.contains(s)));
+}
+
+#[test]
+fn stall_plays_zeros_never_old_frames_and_drops_the_gate() {
+    // Stalls from 20 us to several laps, starting at every phase of the ring.
+    for start in (2_000..2_125).step_by(7) {
+        for len in [31, 50, 63, 100, 125, 200, 500, 1_300] {
+            let m = simulate(5_000, SLOT_BYTES, |_| 0.0, &[(start, start + len)], 1);
+            let first_blank = m.blanks_played.iter().copied().find(|&s| s > 10);
+            match first_blank {
+                None => assert!(m.gate_offs.is_empty(), "{start}+{len}"),
+                Some(s) => {
+                    // If the gate drops, it is within a half (62.5 bytes) + the
+                    // latency of the DMA entering the first slot nobody wrote; a
+                    // stall shorter than that may end before a guard run sees it.
+                    let at = (s * FRAME_BITS as u64).div_ceil(8);
+                    let off = m.gate_offs.first().copied();
+                    assert!(
+                        off.is_none_or(|o| o >= at && o <= at + 64),
+                        "{start}+{len}: blank slot {s} at byte {at}, gate off {off:?}"
+                    );
+                    if len >= 100 {
+                        assert!(off.is_some(), "{start}+{len}: no gate off");
+                    }
+                    assert_eq!(
+                        m.guard.missed(),
+                        u32::from(off.is_some()),
+                        "{start}+{len}: one miss per stall"
+                    );
+                }
+            }
+            // A stall of more than three slot periods always runs dry.
+            if len >= 63 {
+                assert!(first_blank.is_some(), "{start}+{len}");
+            }
+            // Resumed: the writer's frames play again, the gate is not dropped again.
+            let resumed = m.gate_offs.last().copied().unwrap_or(0);
+            assert!(resumed < start + len + 64, "{start}+{len}: {resumed}");
+        }
+    }
+}
+
+#[test]
+fn far_behind_writer_and_late_guard() {
+    // Stalls of many laps; the guard itself late by up to a few bytes.
+    for latency in [0, 2, 5] {
+        let m = simulate(
+            40_000,
+            SLOT_BYTES,
+            |_| 0.0,
+            &[(3_000, 13_000), (20_000, 20_400)],
+            latency,
+        );
+        assert_eq!(m.guard.missed(), 2, "latency {latency}");
+        // During the long stall the gate is refused at every run.
+        let during = m
+            .gate_offs
+            .iter()
+            .filter(|&&o| (3_100..13_000).contains(&o))
+            .count();
+        assert!(during >= (13_000 - 3_100) / 63, "{during}");
+    }
+}
+
+#[test]
+fn writer_finishing_as_the_guard_runs() {
+    // The write just before and just after the run at a boundary, every boundary
+    // phase: the guard sees the write whole or not at all.
+    for f in [125u64 * 40, 125 * 40 + HALF as u64] {
+        for order in [false, true] {
+            let mut m = Model::new();
+            let mut x = 0;
+            while x < f - 8 {
+                if x % 16 == 0 {
+                    m.write(x);
+                }
+                if x > 0 && (x % 125 == 0 || x % 125 == HALF as u64) {
+                    m.run_guard(x);
+                }
+                m.fetch(x);
+                x += 1;
+            }
+            // Writer late (the last write 8..24 bytes ago), then both at `f`.
+            if order {
+                m.write(f);
+                m.run_guard(f);
+            } else {
+                m.run_guard(f);
+                m.write(f);
+            }
+            for y in f..f + 250 {
+                if y % 16 == 0 {
+                    m.write(y);
+                }
+                if y % 125 == 0 || y % 125 == HALF as u64 {
+                    m.run_guard(y);
+                }
+                m.fetch(y);
+            }
+            assert!(m.gate_offs.is_empty(), "{f} {order}: {:?}", m.gate_offs);
+        }
+    }
+}
+
+#[test]
+fn position_read_before_the_lap_run_counts_the_lap() {
+    let mut g = SlotGuard::new();
+    g.run(HALF);
+    // NDTR reloaded, the transfer-complete run still pending.
+    assert_eq!(g.fetched(3), RING_BYTES as u64 + 3);
+    assert_eq!(g.dma_slot(3), 8);
+    assert_eq!(g.wrote(2, 3), 10);
+    g.run(4);
+    assert_eq!(g.fetched(4), RING_BYTES as u64 + 4);
+}
+
+#[test]
+fn stopped_writer_is_no_miss_and_resume_rearms() {
+    let mut g = SlotGuard::new();
+    for k in 1..20u64 {
+        let a = g.run((k * HALF as u64 % RING_BYTES as u64) as usize);
+        assert!(!a.gate_off);
+    }
+    let mut g = SlotGuard::new();
+    g.wrote(2, 0);
+    g.run(HALF);
+    assert_eq!(g.missed(), 1);
+    assert!(!g.clear_if(0) && g.clear_if(1));
+    g.stop();
+    assert!(!g.run(0).gate_off);
+    assert_eq!(g.wrote(2, 0), 10);
+    // Resumed: no miss while the written slot is ahead; a new one after it.
+    assert!(!g.run(20).gate_off);
+    assert_eq!(g.missed(), 1);
+    assert!(g.run(HALF).gate_off);
+    assert_eq!(g.missed(), 2);
+}
+
+#[test]
+fn blank_slot_clears_only_its_bits() {
+    let frames: Vec<Frame> = (0..8u32)
+        .map(|k| Frame::new(k * 0x1_2345 + 7, 0xF_FFFF - k, k ^ 0x5_5555).unwrap())
+        .collect();
+    for k in 0..RING_SLOTS {
+        let mut ring = [0xFFu8; RING_BYTES];
+        for (s, f) in frames.iter().enumerate() {
+            write_slot(&mut ring, s, f).unwrap();
+        }
+        blank_slot(&mut ring, k).unwrap();
+        for (s, f) in frames.iter().enumerate() {
+            if s == k {
+                assert!(read_slot(&ring, s).is_err(), "slot {k} still decodes");
+            } else {
+                assert_eq!(
+                    read_slot(&ring, s).unwrap(),
+                    *f,
+                    "slot {s} after blanking {k}"
+                );
+            }
+        }
+        for bit in 0..RING_BYTES * 8 {
+            let set = ring[bit / 8] & (0x80 >> (bit % 8)) != 0;
+            if bit / FRAME_BITS == k {
+                assert!(!set, "slot {k} bit {bit}");
+            }
+        }
+    }
+    assert!(blank_slot(&mut [0; RING_BYTES], RING_SLOTS).is_err());
+}
+
+/// The ring's bits, `laps` times, as 16-bit sample words at `ratio` samples per
+/// bit (MSB first).
+fn samples(rings: &[[u8; RING_BYTES]], ratio: f64) -> Vec<u16> {
+    let bits: Vec<bool> = rings
+        .iter()
+        .flat_map(|r| (0..RING_BYTES * 8).map(move |b| r[b / 8] & (0x80 >> (b % 8)) != 0))
+        .collect();
+    let n = (bits.len() as f64 * ratio) as usize / 16;
+    (0..n)
+        .map(|w| {
+            (0..16).fold(0u16, |acc, k| {
+                let b = (((w * 16 + k) as f64 + 0.5) / ratio) as usize;
+                acc << 1 | u16::from(bits.get(b).copied().unwrap_or(false))
+            })
+        })
+        .collect()
+}
+
+#[test]
+fn blanked_slots_are_no_frame_on_the_wire() {
+    let frame = |k: u32| Frame::new((k * 0x3_0001 + 11) & 0xF_FFFF, k * 977, 0xA_AAAA ^ k).unwrap();
+    let ring = |base: u32| {
+        let mut r = [0u8; RING_BYTES];
+        for s in 0..RING_SLOTS {
+            write_slot(&mut r, s, &frame(base + s as u32)).unwrap();
+        }
+        r
+    };
+    // Old laps (frames 0..8), then laps of new frames (100..108) with the blanked
+    // slots, then laps of newer frames (200..208) in every slot.
+    let (a, b, c) = (ring(0), ring(100), ring(200));
+    for blanked in [&[5usize][..], &[3, 4], &[0, 1, 2, 3, 4, 5, 6, 7]] {
+        let mut bb = b;
+        for &s in blanked {
+            blank_slot(&mut bb, s).unwrap();
+        }
+        let mut rings = vec![a; 6];
+        rings.extend([bb; 6]);
+        rings.extend([c; 6]);
+        let words = samples(&rings, 3.2);
+        let mut rx = HansRx::new(40_000_000, Mode::Normal { channel: 1 }).unwrap();
+        let mut got = Vec::new();
+        for part in words.chunks(64) {
+            rx.push(&[part; 5], &mut |e| {
+                if let RxEvent::Frame(f) = e {
+                    got.push(f)
+                }
+            });
+        }
+        let which = |f: &Frame| {
+            (0..RING_SLOTS as u32)
+                .flat_map(|k| [k, 100 + k, 200 + k])
+                .find(|&k| frame(k) == *f)
+        };
+        let ks: Vec<u32> = got.iter().map(|f| which(f).unwrap_or(u32::MAX)).collect();
+        // Every frame published is one the rings sent, laps in order (never an
+        // old one after a newer), and no frame of a blanked slot.
+        assert!(
+            ks.iter().all(|&k| k != u32::MAX),
+            "{blanked:?}: unknown frame: {ks:?}"
+        );
+        assert!(
+            ks.windows(2).all(|w| w[0] / 100 <= w[1] / 100),
+            "{blanked:?}: {ks:?}"
+        );
+        for &s in blanked {
+            assert!(!ks.contains(&(100 + s as u32)), "{blanked:?}: {ks:?}");
+        }
+        // Not vacuous: the old laps, the new frames not blanked, the newer laps all
+        // decode.
+        assert!(ks.iter().filter(|&&k| k < 100).count() >= 20, "{ks:?}");
+        let shown = ks.iter().filter(|&&k| (100..200).contains(&k)).count();
+        assert!(
+            (shown > 0) == (blanked.len() < RING_SLOTS),
+            "{blanked:?}: {ks:?}"
+        );
+        assert!(ks.iter().filter(|&&k| k >= 200).count() >= 20, "{ks:?}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Any stalls, wake periods, jitter and guard latency: the DMA never plays a
+    /// slot written for an earlier lap (checked at every byte by the model).
+    #[test]
+    fn never_an_old_frame(
+        stalls in proptest::collection::vec((100u64..9_000, 1u64..2_000), 0..4),
+        jit in 0.0f64..9.0,
+        latency in 0u64..6,
+    ) {
+        let stalls: Vec<(u64, u64)> = stalls.iter().map(|&(a, l)| (a, a + l)).collect();
+        let m = simulate(12_000, SLOT_BYTES, |k| (k % 5) as f64 * jit / 4.0, &stalls, latency);
+        prop_assert!(m.guard.missed() as usize <= stalls.len());
+    }
+}
