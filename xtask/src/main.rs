@@ -72,6 +72,17 @@ const HIL_PAIRINGS: &[&str] = &[
     "configs/xy2-word-to-xy2-word-odd.toml",
     "configs/hans-normal-to-hans.toml",
 ];
+/// The other configurations of `configs/` (no end-to-end test in their HIL image):
+/// the firmware and its HIL binary are linted for each (`--bins --tests`, no link),
+/// so every pairing the company ships builds warning-free, not only those with a
+/// test image (an image with no end-to-end test once failed on unused checks).
+const LINT_ONLY: &[&str] = &[
+    "configs/xy3-to-xy3.toml",
+    "configs/xy3-to-hans.toml",
+    "configs/hans-super-to-xy2.toml",
+    "configs/hans-super-to-xy3-32.toml",
+    "configs/hans-super-to-hans.toml",
+];
 /// The build script's variable naming the configuration to bake (`build.rs`).
 const CONFIG_VAR: &str = "XY_BRIDGE_CONFIG";
 /// ITCM and DTCM sizes (RM0433 section 2.3.2), for the size report.
@@ -290,6 +301,13 @@ fn mcu_lane(lanes: &mut [side::Lane]) -> Result {
         )?;
         hil_placement(config)?;
     }
+    for config in LINT_ONLY {
+        side::check(lanes)?;
+        cargo_env(
+            &[&mcu_clippy[..], &["--bins", "--tests"], DENY_WARNINGS].concat(),
+            &[(CONFIG_VAR, *config)],
+        )?;
+    }
     Ok(())
 }
 
@@ -364,4 +382,33 @@ fn newest_hil_elf() -> Result<PathBuf> {
         .max()
         .map(|(_, path)| path)
         .ok_or_else(|| format!("no HIL test binary in {}", deps.display()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every file of `configs/` is linted by the test command: as an image with an
+    /// end-to-end test or as a lint-only configuration, once.
+    #[test]
+    fn every_config_is_linted_once() {
+        let mut files: Vec<String> = std::fs::read_dir(root().join("configs"))
+            .expect("configs/ is readable")
+            .map(|e| {
+                format!(
+                    "configs/{}",
+                    e.expect("entry").file_name().to_string_lossy()
+                )
+            })
+            .filter(|f| f.ends_with(".toml"))
+            .collect();
+        files.sort();
+        let mut listed: Vec<String> = HIL_PAIRINGS
+            .iter()
+            .chain(LINT_ONLY)
+            .map(|s| (*s).to_string())
+            .collect();
+        listed.sort();
+        assert_eq!(files, listed);
+    }
 }
