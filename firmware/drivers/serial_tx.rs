@@ -74,6 +74,8 @@ use embassy_stm32::{interrupt, pac, peripherals, rcc, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
 use shared::bridge::slot_guard::SlotGuard;
+
+use crate::drivers::ring_index;
 use shared::hans::frame::{blank_slot, write_slot, DecodeError, Frame, RING_BYTES, RING_SLOTS};
 use shared::hans::tx::LEAD_SLOTS;
 
@@ -139,7 +141,7 @@ impl interrupt::typelevel::Handler<interrupt::typelevel::DMA2_STREAM3> for HeadG
                 return;
             }
             let ndtr = pac::DMA2.st(HEAD_STREAM).ndtr().read().ndt() as usize;
-            let act = g.guard.run(ring_pos(ndtr));
+            let act = g.guard.run(ring_index(ndtr, RING_BYTES));
             // SAFETY: the address of the running ring (set by `arm_head_guard`, which
             // the ring's `SerialTx` outlives: `Drop` unsets it); the writer writes it
             // only under this lock, the DMA only reads it.
@@ -153,12 +155,6 @@ impl interrupt::typelevel::Handler<interrupt::typelevel::DMA2_STREAM3> for HeadG
             }
         });
     }
-}
-
-/// The DMA's ring byte (0..RING_BYTES) from NDTR (bytes left in this lap, RM0433
-/// §15.5.6: `RING_BYTES` right after the reload).
-fn ring_pos(ndtr: usize) -> usize {
-    RING_BYTES.saturating_sub(ndtr) % RING_BYTES
 }
 
 /// A running circular serial transmitter.
@@ -259,7 +255,7 @@ impl<'a> SerialTx<'a> {
     /// The slot (0..8) whose bits the DMA is fetching now.
     pub fn sending_slot(&self) -> usize {
         let remaining = self.transfer.get_remaining_transfers() as usize;
-        let byte = RING_BYTES.saturating_sub(remaining) % RING_BYTES;
+        let byte = ring_index(remaining, RING_BYTES);
         (byte * 8 / shared::hans::frame::FRAME_BITS) % RING_SLOTS
     }
 
@@ -329,7 +325,9 @@ impl<'a> SerialTx<'a> {
             // SAFETY: as in `update`; the guard writes the ring only under this lock.
             let r = f(unsafe { &mut *ring }, remaining);
             if let Ok(slot) = r {
-                g.borrow_mut().guard.wrote(slot, ring_pos(remaining));
+                g.borrow_mut()
+                    .guard
+                    .wrote(slot, ring_index(remaining, RING_BYTES));
             }
             r
         })

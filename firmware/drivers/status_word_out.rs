@@ -59,6 +59,7 @@ use embassy_stm32::dma::{Channel, ChannelInstance, InterruptHandler, Request, Tr
 use embassy_stm32::gpio::Output;
 use embassy_stm32::{interrupt, pac, Peri};
 
+use super::ring_index;
 use super::wave_out::timing_critical;
 use super::xy2_sampler::Xy2Sampler;
 
@@ -217,8 +218,7 @@ impl<'d> StatusWordOut<'d> {
     /// Ring index of the word the next edge plays (DMA_SxNDTR counts `len` down to 1
     /// and reloads, RM0433 §15.5.6).
     pub fn position(&self) -> usize {
-        let remaining = self.transfer.get_remaining_transfers() as usize;
-        (self.len + self.len - remaining.min(self.len)) % self.len
+        ring_index(self.transfer.get_remaining_transfers() as usize, self.len)
     }
 
     /// After a sampler half (`half`, starting at sampler ring index `start`, `None`

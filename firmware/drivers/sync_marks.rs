@@ -32,6 +32,8 @@ use embassy_stm32::mode::Blocking;
 use embassy_stm32::peripherals::{EXTI4 as EXTI4_CH, PA4};
 use embassy_stm32::{pac, Peri};
 
+use super::ring_index;
+
 /// Queue depth: a frame is 3..4 bytes, so a drain per 64-byte X half (the firmware's
 /// input task) finds at most 22 marks; 256 leaves room for a reader that is late by
 /// several halves (a test draining a whole 512-byte ring at once finds up to 171).
@@ -64,8 +66,8 @@ impl Handler<EXTI4> for SyncEdgeHandler {
             return;
         }
         let ndtr = pac::DMA1.st(X_STREAM).ndtr().read().ndt();
-        // NDTR counts down from len to 1 and reloads: the index of the next word.
-        let index = len.wrapping_sub(ndtr) % len;
+        // The index of the next word (len <= u16::MAX: it fits back).
+        let index = ring_index(usize::from(ndtr), usize::from(len)) as u16;
         let head = HEAD.load(Ordering::Relaxed);
         if head.wrapping_add(1) == TAIL.load(Ordering::Acquire) {
             DROPPED.fetch_add(1, Ordering::Relaxed);

@@ -126,6 +126,7 @@ use embassy_sync::waitqueue::AtomicWaker;
 use shared::bridge::ring_guard::{Claim, Fill, RingGuard, LEAD_WORDS};
 
 use crate::channels::{clear_output_stale, output_stale_gate_off};
+use crate::drivers::ring_index;
 
 /// The output stream (board allocation: DMA2 stream 1, the type of `new`'s `dma`).
 const OUT_STREAM: usize = 1;
@@ -237,11 +238,9 @@ fn on_boundary() {
     BOUNDARY.wake();
 }
 
-/// The output DMA's ring index (0..len) of the next word it fetches (RM0433 §15.5.6,
-/// DMA_SxNDTR: transfers left in this lap).
+/// The output DMA's ring index (0..len) of the next word it fetches.
 fn out_position(len: usize) -> usize {
-    let ndtr = pac::DMA2.st(OUT_STREAM).ndtr().read().ndt() as usize;
-    (len - ndtr.min(len)) % len.max(1)
+    ring_index(pac::DMA2.st(OUT_STREAM).ndtr().read().ndt() as usize, len)
 }
 
 /// Errors of [`WaveOut`].
@@ -719,8 +718,7 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
     fn realign_frozen(&mut self, cnt: u32, ccr: u32) -> bool {
         let out_len = self.ring_len;
         let half = out_len / 2;
-        let ndtr = |stream: usize| pac::DMA2.st(stream).ndtr().read().ndt() as usize;
-        let o = (out_len - ndtr(OUT_STREAM).min(out_len)) % out_len;
+        let o = out_position(out_len);
         // Words played, absolutely: the guard's half, or the next one if the DMA
         // crossed a boundary whose interrupt is still pending (masked here; never
         // two: the guard runs within microseconds of each).
@@ -735,7 +733,10 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         let Some(st) = self.status.as_mut() else {
             return false;
         };
-        let s = (st.ring_len - ndtr(STATUS_STREAM).min(st.ring_len)) % st.ring_len;
+        let s = ring_index(
+            pac::DMA2.st(STATUS_STREAM).ndtr().read().ndt() as usize,
+            st.ring_len,
+        );
         // Samples taken minus words played; CNT after the compare <=> this period's
         // sample is taken (at CNT == CCR the order of the compare and our read is not
         // known, so only the positions decide).

@@ -50,6 +50,8 @@ use embassy_stm32::timer::low_level::Timer;
 use embassy_stm32::timer::ExternalTriggerPin;
 use embassy_stm32::{interrupt, pac, Peri};
 
+use super::ring_index;
+
 /// DMAMUX1 request number of TIM1_TRIG (RM0433 §17.3.2).
 const TIM1_TRIG_REQUEST: Request = 16;
 /// The sampler's stream (board allocation: DMA2 stream 0, the type of `new`'s `dma`).
@@ -222,8 +224,7 @@ impl<'d> Xy2Sampler<'d> {
                 (ndtr() == before).then_some(before)
             });
             if let Some(n) = agreed {
-                // NDTR counts len..1 and reloads: the index of the next sample.
-                self.next = Some((self.ring_len + self.ring_len - n) % self.ring_len);
+                self.next = Some(ring_index(n, self.ring_len));
                 return;
             }
         }
