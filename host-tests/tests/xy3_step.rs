@@ -18,7 +18,7 @@ use host_tests::pipeline::{Options, Pipeline};
 use host_tests::wave::{Ps, Waveform};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
-use shared::bridge::{Config, LinkState, Protocol, Timing, ZSource};
+use shared::bridge::{Config, LinkState, Protocol, Timing, Xy3Select, ZSource};
 use shared::model::{Axis, FaultKind, ForwardFrame, Line};
 use shared::xy3::step::{GOOD_RUN, MAX_BACKOFF, OUT_OF_STEP_NS};
 use shared::xy3::FrameSize;
@@ -185,6 +185,13 @@ const GLITCH_ESCAPES_400: [(usize, usize); 9] = [
     (332, 0),
 ];
 
+/// The wrong frames [`glitched_line_with_software_select_forwards_no_wrong_frame`]
+/// forwards, 48 cases: none.
+const SOFTWARE_SELECT_ESCAPES: [(usize, usize); 0] = [];
+
+/// [`SOFTWARE_SELECT_ESCAPES`] for `XY3_STEP_CASES=400`: none.
+const SOFTWARE_SELECT_ESCAPES_400: [(usize, usize); 0] = [];
+
 /// The wrong frames [`stuck_line_restarts_with_backoff_and_never_forwards`]
 /// forwards: the case of each frame the line broke in that still passed its
 /// check (the 24-bit parity misses half of such tails). None: the watch holds
@@ -276,6 +283,11 @@ fn persists(w: &Waveform, line: &str, partial: PartialByte) -> bool {
     match partial {
         PartialByte::Discard => clk.iter().zip(&own).any(|(c, o)| c / 8 != o / 8),
         PartialByte::CarryOver => clk.iter().sum::<u32>() != own.iter().sum::<u32>(),
+        // No NSS: every edge counts, also the spikes in a gap with SYNC high.
+        PartialByte::Unselected => {
+            let all = |n: &str| w.get(n).expect("SCK").falling_edges().count();
+            all(roles::CLK) != all(&roles::spi_sck(line))
+        }
     }
 }
 
@@ -292,11 +304,52 @@ fn half_ns(size: FrameSize) -> u64 {
 /// within the watch's limit plus detection and the restart's own time, and
 /// forwarding resumes with every frame in order; (d) meanwhile the bridge holds
 /// the last position (never parks: the restart comes well inside the hold time);
-/// a shift the slaves drop by themselves restarts nothing.
+/// a shift the slaves drop by themselves restarts nothing. SYNC is the slaves'
+/// NSS (`controller.xy3.select = "sync"`); half of the cases model slaves that
+/// drop a partial byte at NSS release, half slaves that keep it (RM0433 leaves
+/// it open, `PartialByte`).
 #[test]
 fn glitched_line_restarts_the_session() {
+    campaign(
+        Xy3Select::Sync,
+        |case| {
+            if case % 4 < 2 {
+                PartialByte::Discard
+            } else {
+                PartialByte::CarryOver
+            }
+        },
+        &GLITCH_ESCAPES,
+        &GLITCH_ESCAPES_400,
+    );
+}
+
+/// The same glitches (same seed, so the same sizes, lines, times and edges) with
+/// software slave select (`controller.xy3.select = "always"`): no slave ever drops
+/// a bit, so every glitch shifts its line for good and restarts the session, and
+/// no wrong frame gets out ([`SOFTWARE_SELECT_ESCAPES`]).
+#[test]
+fn glitched_line_with_software_select_forwards_no_wrong_frame() {
+    campaign(
+        Xy3Select::Always,
+        |_| PartialByte::Unselected,
+        &SOFTWARE_SELECT_ESCAPES,
+        &SOFTWARE_SELECT_ESCAPES_400,
+    );
+}
+
+/// The glitch campaign of [`glitched_line_restarts_the_session`] with the slaves
+/// selected by `select`, case `k` modelled as `partial_of(k)`; `want` and
+/// `want_400` pin the escapes of 48 and 400 (`XY3_STEP_CASES=400`) cases.
+fn campaign(
+    select: Xy3Select,
+    partial_of: impl Fn(usize) -> PartialByte,
+    want_48: &[(usize, usize)],
+    want_400: &[(usize, usize)],
+) {
     let mut rng = ChaCha8Rng::seed_from_u64(0x0573_57E9);
-    let c = config();
+    let mut c = config();
+    c.controller.xy3.select = select;
     let n = 3_000;
     let mut withheld_total = 0;
     let mut restarted = 0;
@@ -317,11 +370,7 @@ fn glitched_line_restarts_the_session() {
         } else {
             FrameSize::Bits32
         };
-        let partial = if case % 4 < 2 {
-            PartialByte::Discard
-        } else {
-            PartialByte::CarryOver
-        };
+        let partial = partial_of(case);
         let t = timing(size);
         let sent = frames(&c, &t, n, &mut rng);
         let faulty = rng.random_range(0..LINES.len());
@@ -517,11 +566,7 @@ fn glitched_line_restarts_the_session() {
     // Some shifted periods pass every check by chance (random data: up to one in
     // eight for 24-bit frames); the watch must have withheld them.
     assert!(withheld_total > 0, "no period withheld in any case");
-    let want: &[(usize, usize)] = if cases == 400 {
-        &GLITCH_ESCAPES_400
-    } else {
-        &GLITCH_ESCAPES
-    };
+    let want = if cases == 400 { want_400 } else { want_48 };
     assert_eq!(escapes, want, "(case, frames after the glitch's)");
 }
 
