@@ -15,7 +15,7 @@ use host_tests::line::sample::PartialByte;
 use host_tests::pipeline::check::{expected, raw};
 use host_tests::pipeline::stimulus::{self, GenTiming, SessionModel, Stimulus, Xy3Session};
 use host_tests::pipeline::{Options, Pipeline};
-use host_tests::wave::{Ps, Waveform};
+use host_tests::wave::{Ps, Signal, Waveform};
 use rand::rngs::ChaCha8Rng;
 use rand::{RngExt, SeedableRng};
 use shared::bridge::{Config, LinkState, Protocol, Timing, Xy3Select, ZSource};
@@ -185,12 +185,24 @@ const GLITCH_ESCAPES_400: [(usize, usize); 9] = [
     (332, 0),
 ];
 
-/// The wrong frames [`glitched_line_with_software_select_forwards_no_wrong_frame`]
-/// forwards, 48 cases: none.
+/// The wrong frames [`glitched_line_with_software_select`] forwards, 48 cases:
+/// none.
 const SOFTWARE_SELECT_ESCAPES: [(usize, usize); 0] = [];
 
-/// [`SOFTWARE_SELECT_ESCAPES`] for `XY3_STEP_CASES=400`: none.
-const SOFTWARE_SELECT_ESCAPES_400: [(usize, usize); 0] = [];
+/// [`SOFTWARE_SELECT_ESCAPES`] for `XY3_STEP_CASES=400`: 3 frames in 3 runs,
+/// against 9 with the mixed slaves of [`GLITCH_ESCAPES_400`] (all in the half that
+/// drops partial bytes) and 10 when all 400 drop them (those 9 and case 374:
+/// every one the glitch's own frame of a glitch the line heals from). With no
+/// NSS nothing heals: every glitch restarts the session, and what is left is
+/// the same as with slaves that keep partial bytes in all 400 (3 in 3): the
+/// glitch's own frame when the first shifted period after it passes its check
+/// by chance and confirms it (cases 84 and 232, 24-bit, +1..3 edges; the hold
+/// then repeats that frame with the laser gate off until the new session
+/// runs), and one lasting shift whose third shifted period passed with the two
+/// after it (case 128). Needing two confirming periods outside an open window
+/// too would leave case 128 only (measured, not taken: one more period of
+/// latency on every frame).
+const SOFTWARE_SELECT_ESCAPES_400: [(usize, usize); 3] = [(84, 0), (128, 2), (232, 0)];
 
 /// The wrong frames [`stuck_line_restarts_with_backoff_and_never_forwards`]
 /// forwards: the case of each frame the line broke in that still passed its
@@ -326,10 +338,10 @@ fn glitched_line_restarts_the_session() {
 
 /// The same glitches (same seed, so the same sizes, lines, times and edges) with
 /// software slave select (`controller.xy3.select = "always"`): no slave ever drops
-/// a bit, so every glitch shifts its line for good and restarts the session, and
-/// no wrong frame gets out ([`SOFTWARE_SELECT_ESCAPES`]).
+/// a bit, so every glitch shifts its line for good and restarts the session
+/// (wrong frames that get out: [`SOFTWARE_SELECT_ESCAPES`]).
 #[test]
-fn glitched_line_with_software_select_forwards_no_wrong_frame() {
+fn glitched_line_with_software_select() {
     campaign(
         Xy3Select::Always,
         |_| PartialByte::Unselected,
@@ -796,10 +808,15 @@ fn stuck_line_restarts_with_backoff_and_never_forwards() {
 #[test]
 fn clean_lines_never_restart() {
     let mut rng = ChaCha8Rng::seed_from_u64(0xC1EA);
-    let c = config();
     for size in [FrameSize::Bits24, FrameSize::Bits32] {
-        for partial in [PartialByte::Discard, PartialByte::CarryOver] {
-            let label = format!("{size:?} {partial:?}");
+        for (select, partial) in [
+            (Xy3Select::Sync, PartialByte::Discard),
+            (Xy3Select::Sync, PartialByte::CarryOver),
+            (Xy3Select::Always, PartialByte::Unselected),
+        ] {
+            let mut c = config();
+            c.controller.xy3.select = select;
+            let label = format!("{size:?} {select:?} {partial:?}");
             let t = timing(size);
             let sent = frames(&c, &t, 20_000, &mut rng);
             let model = SessionModel {
@@ -827,6 +844,67 @@ fn clean_lines_never_restart() {
                 run.p.states().last().map(|s| s.value),
                 Some(LinkState::Running)
             );
+        }
+    }
+}
+
+/// Adds one CLK pulse in every gap between frames, while SYNC is high: a
+/// controller whose clock keeps running between frames.
+fn clock_between_frames(w: &mut Waveform) {
+    let nss = w.get(roles::SYNC).expect("SYNC").clone();
+    let clk = w.get_mut(roles::CLK).expect("CLK");
+    let mut changes = clk.changes().to_vec();
+    let rises: Vec<Ps> = nss.rising_edges().collect();
+    for r in rises {
+        let Some(f) = nss.falling_edges().find(|&f| f > r) else {
+            continue;
+        };
+        changes.push((r + (f - r) / 3, true));
+        changes.push((r + 2 * (f - r) / 3, false));
+    }
+    changes.sort_unstable();
+    *clk = Signal::from_changes(roles::CLK, clk.initial(), changes)
+        .expect("CLK with pulses between frames");
+}
+
+/// `controller.xy3.select = "always"` needs a controller whose CLK has no falling
+/// edge while SYNC is high. One that clocks between frames (here one pulse per
+/// gap) shifts those edges into every line's stream: no period decodes, nothing
+/// is ever forwarded, and the input restarts with back-off (fails safe). With
+/// `"sync"` the same waveform is received whole: the slaves ignore the clock
+/// while NSS is high.
+#[test]
+fn software_select_with_a_clock_between_frames_forwards_nothing() {
+    let mut rng = ChaCha8Rng::seed_from_u64(0x5E1E);
+    let t = timing(FrameSize::Bits24);
+    for select in [Xy3Select::Always, Xy3Select::Sync] {
+        let mut c = config();
+        c.controller.xy3.select = select;
+        let sent = frames(&c, &t, 4_000, &mut rng);
+        let run = Run::new(&c, &t, &sent, &SessionModel::default(), clock_between_frames);
+        let label = format!("{select:?}");
+        let running: Vec<usize> = run
+            .carried(&c, None, &label)
+            .iter()
+            .filter(|o| o.state == LinkState::Running)
+            .map(|o| o.input)
+            .collect();
+        match select {
+            Xy3Select::Always => {
+                assert!(running.is_empty(), "{label}: forwarded {running:?}");
+                assert!(
+                    run.p.states().iter().all(|s| s.value != LinkState::Running),
+                    "{label}: {:?}",
+                    run.p.states()
+                );
+                // 40 ms of input: restarts after 2, 4, 8, 16 ms of bad periods.
+                assert!(run.sessions.len() >= 4, "{label}: {:?}", run.sessions);
+            }
+            Xy3Select::Sync => {
+                assert_eq!(run.sessions.len(), 1, "{label}");
+                assert!(running.windows(2).all(|w| w[1] == w[0] + 1), "{label}");
+                assert!(running.last().is_some_and(|&i| i + 30 >= sent.len()));
+            }
         }
     }
 }
