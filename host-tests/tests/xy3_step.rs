@@ -168,7 +168,10 @@ const GLITCH_ESCAPES: [(usize, usize); 0] = [];
 /// [`GLITCH_ESCAPES`] for `XY3_STEP_CASES=400` (about 30 s): 9 frames in 9
 /// runs, each the glitch's own frame (24-bit frames, slaves dropping partial
 /// bytes, 1..3 extra edges: the spoilt frame passes its 2-bit parity, the line
-/// is in step again from the next frame, which confirms it). No bad period
+/// is in step again from the next frame, which confirms it). None in the half
+/// of the cases with slaves keeping partial bytes; with all 400 dropping them
+/// 10 (these and case 374), with all 400 keeping them 3 (cases 84, 128, 232 of
+/// [`SOFTWARE_SELECT_ESCAPES_400`]; measured 2026-12-04, not pinned). No bad period
 /// comes before or after it, so no rule of the watch can refuse it; counting
 /// each line's clock edges would (README "What is left"). Was 11 in 11 with
 /// one confirming period (also `(44, 2)` and `(156, 1)`, lasting shifts), 17
@@ -280,7 +283,8 @@ fn sampled_per_frame(w: &Waveform, sck: &str) -> Vec<u32> {
 
 /// Whether the glitch on `line` in `w` leaves that line out of step until a
 /// restart, from the edges its slave *samples* against the shared clock's: a
-/// slave that keeps partial bytes carries any bit shift on; one that drops them
+/// slave that keeps partial bytes, or one without SS (which samples every edge),
+/// carries any bit shift on; one that drops them
 /// at NSS release is out of step only when some frame ends with another number
 /// of whole bytes (8 or more extra edges in that frame, or any missed one) and
 /// drops up to 7 extra bits with the frame that had them. Not the glitch's
@@ -881,7 +885,13 @@ fn software_select_with_a_clock_between_frames_forwards_nothing() {
         let mut c = config();
         c.controller.xy3.select = select;
         let sent = frames(&c, &t, 4_000, &mut rng);
-        let run = Run::new(&c, &t, &sent, &SessionModel::default(), clock_between_frames);
+        let run = Run::new(
+            &c,
+            &t,
+            &sent,
+            &SessionModel::default(),
+            clock_between_frames,
+        );
         let label = format!("{select:?}");
         let running: Vec<usize> = run
             .carried(&c, None, &label)
