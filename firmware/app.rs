@@ -248,8 +248,9 @@ pub fn controller_xy3(
     // Z only with `z.source = "input"`, U / W only for an XY3-100 head): an
     // unconnected line would fail every period.
     let lines = config.xy3_input_lines();
-    defmt::info!("xy3 in: lines {}", lines);
-    ex.line.spawn(line::xy3_in(xy3_in, lines).unwrap());
+    let select = config.controller.xy3.select;
+    defmt::info!("xy3 in: lines {}, select {}", lines, select);
+    ex.line.spawn(line::xy3_in(xy3_in, lines, select).unwrap());
     let b = back;
     let back_config = backchannel::config(config.controller.xy3.back_rate.baud());
     match Uart::new_with_de(

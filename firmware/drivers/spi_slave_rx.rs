@@ -18,8 +18,19 @@
 //!    edge, which XY3-100 needs (`layouts.md` §2) and HANS-100's free-running
 //!    oversampling clock does not care about; MSB first; and either hardware SS with
 //!    active-low polarity (XY3-100: SYNC is the frame's chip select) or software SS
-//!    held active (SSM = 1, SSI = 0; HANS-100: a free-running stream) (§50.4, slave
-//!    select management).
+//!    held active (SSM = 1, SSI = 0; HANS-100: a free-running stream, and XY3-100
+//!    with `controller.xy3.select = "always"`) (§50.4, slave select (SS)
+//!    pin management).
+//!
+//! SS and a cut data frame: §50.4 (slave select (SS) pin management) presents the
+//! slave's SS input as a chip select and nothing more; neither it nor the data
+//! frame size (CFG1.DSIZE), FIFO threshold (CFG1.FTHLV) or transfer size
+//! (CR2.TSIZE) text says what becomes of the bits of a frame that SS ends early,
+//! and SSOM / MIDI / MSSI (CFG2) time a *master's* SS output only. So with hardware SS whether such bits are dropped
+//! or completed by the next frame's is not ours to rely on (the XY3-100 receiver
+//! copes with both, `shared::xy3::rx`); software SS never ends a frame, and SPE =
+//! 0 (SPI_CR1.SPE: state machine reset, FIFOs flushed) is the one documented reset of the shift logic and FIFOs (what
+//! an input restart does, by dropping and re-creating the driver).
 //! 4. CR2.TSIZE = 0: endless transfer, the SPI never ends a transaction by itself.
 //! 5. DMA stream started (circular, half/complete interrupts), then SPE = 1.
 //!

@@ -31,7 +31,7 @@ use embassy_stm32::peripherals::{
     PC10, PC12, PE11, PE12, PE14, PF6, PF7, PF9, PG10, SPI1, SPI2, SPI3, SPI4, SPI5,
 };
 use embassy_stm32::spi::{CsPin, MosiPin, RxDma, SckPin};
-use shared::bridge::Xy2Controller;
+use shared::bridge::{Xy2Controller, Xy3Select};
 use shared::hans::follow;
 use shared::model::Axis;
 use shared::xy3::rx::Lines;
@@ -132,8 +132,15 @@ pub async fn xy2_in(r: Xy2InRes, word: Option<WordOut>) {
 /// does a request from the bridge ([`XY3_RESYNC`]): a glitch that clocked one SPI
 /// but not the others leaves the lines out of step without any overrun, which only
 /// the decoded periods show (`shared::xy3::step`).
+///
+/// `select` (`controller.xy3.select`): SYNC as every SPI's hardware NSS, or
+/// software slave select held active (`SpiSlaveRx::new` without an NSS pin: SSM =
+/// 1, SSI = 0, RM0433 §50.4, slave select (SS) pin management), so that no bit of a frame is ever dropped at SS
+/// release and a glitch's extra edges shift their line for good instead of
+/// spoiling one frame unseen (`shared::bridge::Xy3Select`). SYNC's EXTI marks the
+/// frame ends either way.
 #[embassy_executor::task]
-pub async fn xy3_in(r: Xy3InRes, lines: Lines) {
+pub async fn xy3_in(r: Xy3InRes, lines: Lines, select: Xy3Select) {
     let mut r = r;
     let mut sck_bus = Output::new(r.sck_buffer_oe.reborrow(), Level::High, Speed::Low);
     let x_ring = dma_ring!(".sram1", u8, 2 * XY3_HALF);
@@ -164,7 +171,7 @@ pub async fn xy3_in(r: Xy3InRes, lines: Lines) {
         };
         // A request for an older session is stale: this one starts in step.
         XY3_RESYNC.reset();
-        if let Err(e) = xy3_session(res, lines, rings, session, &mut sck_bus).await {
+        if let Err(e) = xy3_session(res, lines, select, rings, session, &mut sck_bus).await {
             defmt::warn!("xy3 in: {}; restarting all lines together", e);
             Stats::bump(&STATS.input_overruns);
             // A failure that repeats at once must not spin the high-priority
@@ -187,9 +194,11 @@ struct Xy3Lines<'a> {
     exti: &'a mut Peri<'static, EXTI4>,
 }
 
-/// Starts one data line's SPI slave into `ring`, if `on`.
+/// Starts one data line's SPI slave into `ring`, if `on`, selected by its NSS
+/// pin (SYNC) or by software (see [`xy3_in`]).
 fn start_line<'a, T, K, M, N, D>(
     on: bool,
+    select: Xy3Select,
     l: &'a mut SpiLineRes<T, K, M, N, D>,
     ring: &'a mut [u8],
 ) -> Result<Option<SpiSlaveRx<'a, u8>>, RxError>
@@ -208,7 +217,7 @@ where
         l.spi.reborrow(),
         l.sck.reborrow(),
         l.mosi.reborrow(),
-        Some(l.nss.reborrow()),
+        (select == Xy3Select::Sync).then(|| l.nss.reborrow()),
         l.dma.reborrow(),
         Irqs,
         ring,
@@ -221,6 +230,7 @@ where
 async fn xy3_session(
     r: Xy3Lines<'_>,
     lines: Lines,
+    select: Xy3Select,
     rings: [&mut [u8]; XY3_LINES],
     session: u32,
     sck_bus: &mut Output<'_>,
@@ -229,11 +239,11 @@ async fn xy3_session(
     let ring_len = x_ring.len() as u16;
     // Indexed by `Axis::index`, like `Xy3Raw::bytes`. X is in every set.
     let mut rx = [
-        start_line(true, r.x, x_ring)?,
-        start_line(lines.has(Axis::Y), r.y, y_ring)?,
-        start_line(lines.has(Axis::Z), r.z, z_ring)?,
-        start_line(lines.has(Axis::U), r.u, u_ring)?,
-        start_line(lines.has(Axis::W), r.w, w_ring)?,
+        start_line(true, select, r.x, x_ring)?,
+        start_line(lines.has(Axis::Y), select, r.y, y_ring)?,
+        start_line(lines.has(Axis::Z), select, r.z, z_ring)?,
+        start_line(lines.has(Axis::U), select, r.u, u_ring)?,
+        start_line(lines.has(Axis::W), select, r.w, w_ring)?,
     ];
     let mut marks = SyncMarks::new(r.sync.reborrow(), r.exti.reborrow(), Irqs, ring_len);
     // Every line is ready: let the clock in.

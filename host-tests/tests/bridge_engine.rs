@@ -6,6 +6,7 @@
 use shared::bridge::status::{BRIDGE_FIRMWARE, BRIDGE_VENDOR};
 use shared::bridge::{
     AfterHold, Bridge, Config, ConfigError, LinkState, Output, Protocol, StatusForm, Timing,
+    Xy3Select,
 };
 use shared::model::{Alarms, Axis, FaultKind, ForwardFrame, HeadStatus, Line, LineEvent, Text};
 use shared::xy2::{self, Mode, Parity};
@@ -60,6 +61,7 @@ fn file_values_reach_the_types() {
         hans.decode = { vote3 = [1, 3, 5] }
         xy3.back_rate = 921600
         xy3.lines = ["w", "x", "y"]
+        xy3.select = "always"
         [head]
         protocol = "xy2"
         xy2 = { mode = "extended18", enhanced_commands = false, parity = "data_only", status = "word", polarity = "high_is_ok" }
@@ -81,9 +83,11 @@ fn file_values_reach_the_types() {
         cfg.controller.xy3.lines,
         xy3::rx::Lines::new(&[Axis::X, Axis::Y, Axis::W]).unwrap()
     );
+    assert_eq!(cfg.controller.xy3.select, Xy3Select::Always);
     // Written back in axis order.
     let text = toml::to_string(&cfg).unwrap();
     assert!(text.contains("lines = [\"x\", \"y\", \"w\"]"), "{text}");
+    assert!(text.contains("select = \"always\""), "{text}");
     assert_eq!(cfg.head.xy2.mode, Mode::Extended18);
     assert_eq!(cfg.head.xy2.parity, Parity::DataOnly);
     assert_eq!(cfg.head.xy2.status, StatusForm::Word);
@@ -126,6 +130,7 @@ fn bad_files_name_the_key() {
         ("[controller.xy3]\nlines = [\"y\"]", "without \"x\" or \"y\""),
         ("[controller.xy3]\nlines = []", "without \"x\" or \"y\""),
         ("[controller.xy3]\nlines = \"xyz\"", "expected a list of distinct XY3-100 lines"),
+        ("[controller.xy3]\nselect = \"nss\"", "select"),
     ];
     for (text, key) in cases {
         let err = toml::from_str::<Config>(text).unwrap_err().to_string();

@@ -39,6 +39,7 @@ fn every_field_survives_the_trip() {
         protocol = "xy3"
         xy3.back_rate = 921600
         xy3.lines = ["x", "y", "u", "w"]
+        xy3.select = "always"
         xy2 = { mode = "extended18", parity = "data_only", polarity = "high_is_ok" }
         [head]
         protocol = "xy2"

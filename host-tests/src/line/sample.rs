@@ -65,10 +65,18 @@ pub fn xy2_port_samples(wave: &Waveform, pins: &PinMap) -> Result<(Vec<u16>, Vec
 
 /// What an SPI slave does with an incomplete byte when NSS rises.
 ///
-/// We could not confirm from RM0433 what the H7 SPI does with a partial data frame at
-/// NSS release (one field report says bits can linger in the shift register). Both are
-/// modelled so decoders can be tested against either; they must use the frame end
-/// positions to cope.
+/// RM0433 does not say what the H7 SPI slave does with a partial data frame at NSS
+/// release (§50.4.7 describes SS only as a chip select; searched 2026-12-04, see
+/// the engineering log), and the field reports disagree (one: bits linger in the
+/// shift register with 16-bit frames; the same report: 8-bit frames resynchronise
+/// at NSS). Both are modelled so decoders are tested against either, and a third
+/// for software slave select, which takes NSS out of the question.
+///
+/// The default is [`PartialByte::Discard`], the pessimistic one for the safety
+/// question: a slave that drops the bits heals from a glitch of 1..7 extra edges
+/// at the frame end, so the spoilt frame is the only trace and passes its checks
+/// now and then (`shared::xy3::step`); a slave that keeps them stays out of step,
+/// which the step watch sees.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum PartialByte {
     /// The bits are dropped and the next frame starts a fresh byte (default).
@@ -76,6 +84,11 @@ pub enum PartialByte {
     Discard,
     /// The bits stay in the shift register and complete with the next frame's bits.
     CarryOver,
+    /// Software slave select held active (`controller.xy3.select = "always"`):
+    /// NSS is not the slave's, so every CLK falling edge is sampled, also while
+    /// SYNC is high, and bits carry over as with [`PartialByte::CarryOver`]. SYNC
+    /// rises still mark the frame ends (the EXTI).
+    Unselected,
 }
 
 /// XY3-100 in: what the SPI slaves and the NSS EXTI deliver (layouts item 2).
@@ -98,7 +111,8 @@ pub struct SpiCapture {
 
 /// Emulates one SPI slave per data line: SCK = `CLK`, NSS = `SYNC` (active low), 8-bit
 /// words, MSB first, sampled on CLK falling edges while NSS is low (a clock edge at
-/// the instant NSS rises is not sampled). One input session from time 0:
+/// the instant NSS rises is not sampled; with [`PartialByte::Unselected`] on every
+/// falling edge). One input session from time 0:
 /// [`xy3_spi_session`] with `start_ps` 0, so a waveform that gives a line its own
 /// SCK ([`roles::spi_sck`]) is sampled on it.
 pub fn xy3_spi(
@@ -153,7 +167,7 @@ fn spi_slave(
             }
             continue;
         }
-        if nss.level_at(t) {
+        if nss.level_at(t) && partial != PartialByte::Unselected {
             continue;
         }
         shift = (shift << 1) | u8::from(data.level_at(t));

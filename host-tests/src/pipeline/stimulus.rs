@@ -2,7 +2,7 @@
 //! line-level transmitters, and waveforms -> time-stamped DMA buffers through the
 //! samplers of [`crate::line::sample`] (so impairments can be applied in between).
 
-use shared::bridge::{Config, Protocol, ZSource};
+use shared::bridge::{Config, Protocol, Xy3Select, ZSource};
 use shared::hans;
 use shared::model::{Axis, Command, ForwardFrame};
 use shared::xy2;
@@ -429,7 +429,9 @@ pub fn capture(
 /// (`firmware/tasks/line.rs`, `xy3_in`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SessionModel {
-    /// What the SPI slaves do with a partial byte at NSS release.
+    /// What the SPI slaves do with a partial byte at NSS release, with
+    /// `controller.xy3.select = "sync"` (with `"always"` the slaves have no NSS:
+    /// [`PartialByte::Unselected`] whatever this says).
     pub partial: PartialByte,
     /// From the end of a session's last half to the next session's SCK gate
     /// opening, ns: dropping five SPI slaves, starting them and the SYNC EXTI again
@@ -510,11 +512,16 @@ pub fn xy3_sessions(
         .axes()
         .map(|a| roles::AXES[a.index()])
         .collect();
+    // The slaves the firmware starts (`line::xy3_in`): NSS on SYNC, or none.
+    let partial = match config.controller.xy3.select {
+        Xy3Select::Sync => model.partial,
+        Xy3Select::Always => PartialByte::Unselected,
+    };
     let mut sessions = Vec::new();
     let mut start_ps: Ps = 0;
     let mut prev_ns = 0;
     loop {
-        let cap = sample::xy3_spi_session(wave, &names, model.partial, start_ps).map_err(err)?;
+        let cap = sample::xy3_spi_session(wave, &names, partial, start_ps).map_err(err)?;
         let len = cap.bytes.first().map_or(0, Vec::len);
         let halves = len / XY3_HALF;
         let asked = p.xy3_restart_requests().len();

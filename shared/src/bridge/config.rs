@@ -105,6 +105,43 @@ pub struct Xy2Controller {
     pub polarity: Polarity,
 }
 
+/// How the XY3-100 input's SPI slaves are selected (`controller.xy3.select`).
+///
+/// RM0433 (§50.4, slave select (SS) pin management) describes a slave's SS input only
+/// as a chip select; it does not say what the slave does with the bits of a data
+/// frame that SS cuts short, and none of the slave's settings (DSIZE, FTHLV, TSIZE;
+/// SSOM / MIDI / MSSI shape a master's SS output only) defines it. A clock glitch
+/// that gives one line's SPI 1..7 extra edges in a frame therefore either leaves
+/// that line a few bits out of step for good (bits kept) or spoils only that
+/// frame (bits dropped at SS release), and such a spoilt 24-bit frame passes its
+/// checks about one time in four with nothing before or after it to tell
+/// (`shared::xy3::step`, README "Known limits"). With software slave select the
+/// question does not arise.
+#[derive(Clone, Copy, PartialEq, Eq, Debug, Default, Hash)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[cfg_attr(
+    feature = "serde",
+    derive(serde::Serialize, serde::Deserialize),
+    serde(rename_all = "snake_case")
+)]
+pub enum Xy3Select {
+    /// SYNC is every line's hardware SS (NSS pin, SSM = 0): works whatever the
+    /// controller's clock does between frames; what a glitch's extra bits do is
+    /// the silicon's undocumented choice (see the type's docs).
+    #[default]
+    Sync,
+    /// Software slave select held active (SPI_CFG2.SSM = 1, SPI_CR1.SSI = 0,
+    /// RM0433 §50.4, slave select (SS) pin management): the slaves never see SS go inactive, so no
+    /// bit is ever dropped and every extra or missed clock edge shifts all later
+    /// bits of its line, which the receiver and the step watch see and restart
+    /// on. SYNC only marks the frame ends (its EXTI). Needs a controller whose
+    /// CLK has no falling edge while SYNC is high (the XY3-100 text does not
+    /// promise it): a clock running between frames would shift its edges into
+    /// the stream, every period fails its checks and nothing is forwarded (the
+    /// input stays in fault, restarting with back-off).
+    Always,
+}
+
 /// Controller-side XY3-100 options.
 #[derive(Clone, Copy, PartialEq, Eq, Debug, Hash)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
@@ -123,6 +160,9 @@ pub struct Xy3Controller {
     /// this key existed (Z only with `z.source = "input"`).
     #[cfg_attr(feature = "serde", serde(with = "super::serde_impl::xy3_lines"))]
     pub lines: Lines,
+    /// How the input's SPI slaves are selected (in the file: `"sync"` or
+    /// `"always"`).
+    pub select: Xy3Select,
 }
 
 impl Default for Xy3Controller {
@@ -130,6 +170,7 @@ impl Default for Xy3Controller {
         Xy3Controller {
             back_rate: BackRate::default(),
             lines: Lines::XYZ,
+            select: Xy3Select::Sync,
         }
     }
 }

@@ -107,8 +107,8 @@ mod validate;
 pub use config::{
     AfterHold, AxisMap, Config, ControllerSide, FailSafe, GateSource, HansController, HansDecode,
     HeadSide, LaserConfig, OutputConfig, Protocol, StatusForm, Timing, Xy2Controller, Xy2Head,
-    Xy3Controller, Xy3Head, ZConfig, ZSource, CENTRE20, HANS_RATE_HZ, MAX20, MAX_RATE_HZ,
-    MIN_RATE_HZ,
+    Xy3Controller, Xy3Head, Xy3Select, ZConfig, ZSource, CENTRE20, HANS_RATE_HZ, MAX20,
+    MAX_RATE_HZ, MIN_RATE_HZ,
 };
 pub use counters::{Counters, LineCounters};
 pub use engine::{Bridge, LaserOutputs, Output, LASER_OFF};

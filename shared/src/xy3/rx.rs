@@ -41,11 +41,18 @@
 //! truncation or a SYNC glitch between frames.
 //!
 //! # Partial bytes and bit slips
-//! What the H7 SPI slave does with an incomplete byte at NSS release is unknown. If
-//! it drops the bits, every frame starts on a byte boundary. If it keeps them, a frame
-//! with a bit count that is not a multiple of 8 (a glitch clock edge, a truncated
-//! frame) leaves `k` bits in the shift register and shifts *every later byte* by `k`
-//! bits, while the byte counts per period stay 3 or 4: the counts cannot reveal the
+//! What the H7 SPI slave does with an incomplete byte at NSS release is not
+//! documented: RM0433 (§50.4, slave select (SS) pin management) treats the slave's
+//! SS as a chip select only, and no slave setting (data size, FIFO threshold,
+//! transfer size; SSOM / MIDI act on a master's SS output) defines what becomes of
+//! a data frame that SS cuts short. The receiver copes with both kinds; with
+//! `controller.xy3.select = "always"` the slaves run without SS (software select
+//! held active) and always behave as the keeping kind.
+//!
+//! If the slave drops the bits, every frame starts on a byte boundary. If it keeps
+//! them, a frame with a bit count that is not a multiple of 8 (a glitch clock edge,
+//! a truncated frame) leaves `k` bits in the shift register and shifts *every later
+//! byte* by `k` bits, while the byte counts per period stay 3 or 4: the counts cannot reveal the
 //! slip, only the content can. The receiver therefore tracks a *bit offset* `k`
 //! (0..=7) common to all lines: frame `i` is the last `8n - k` bits of its own bytes
 //! followed by the first `k` bits of the next byte (which the shift register carried
@@ -57,7 +64,9 @@
 //!   when the same single offset decodes every line in [`LOCK_PERIODS`] consecutive
 //!   periods, and delivers the period that completed the lock. Until then every
 //!   period is [`RxError::Unaligned`]. With the drop-bits behaviour this always finds
-//!   offset 0 again, so the receiver never needs the SPI reset.
+//!   offset 0 again, so the receiver never needs the SPI reset. Without SS (select
+//!   `"always"`) a session that starts inside a frame starts at another offset,
+//!   which the hunt finds the same way.
 //! - Residual risk, inherent to a byte-level receiver: a slip whose first shifted
 //!   period happens to pass every line's check (for random data about `(1/8)^c` for
 //!   24-bit and `(1/32)^c` for 32-bit frames with `c` lines) is delivered before the

@@ -78,7 +78,13 @@
 //!   apart cost what they did (the window closes before the next one). The 9
 //!   left are all the glitch's own frame (24-bit, partial bytes dropped, 1..3
 //!   extra edges): no period before or after it fails, so nothing the watch
-//!   sees can refuse it; see README "What is left".
+//!   sees can refuse it, and nothing in the bytes either (the slave dropped the
+//!   extra bits with the frame's tail; only the content is spoilt). The same
+//!   400 glitches with every slave dropping partial bytes: 10 wrong frames;
+//!   with every slave keeping them, or without SS
+//!   (`controller.xy3.select = "always"`, where nothing heals and every glitch
+//!   restarts): 3 (two glitch frames confirmed by a chance pass of the first
+//!   shifted period, one lasting shift). See README "Known limits".
 //! - Only the held period's direct successor confirms it: a good period whose
 //!   bytes do not begin where the held one's ended (a new input session, a half
 //!   the bridge never got, anything that gave the receiver a new byte count)
