@@ -328,6 +328,21 @@ pub fn far_edge(ratio: i32) -> u32 {
     (ratio as u32 / 16).wrapping_mul(5)
 }
 
+/// How far (Q16 samples) beyond [`far_edge`] an edge of a tail that
+/// [`excursion`] rejected must lie to count for it on a second count
+/// ([`far_beyond`], `HansRx::near_bound`): 1/32 sample.
+pub const FAR_SLACK: u32 = 1 << (FRAC - 5);
+
+/// How many of the last [`TAIL_PAIRS`] mid-pair edges of the frame at `head`
+/// (as for [`tail`]) lie [`far_edge`] plus `slack` or more off, whichever way.
+pub fn far_beyond(ring: &Ring, head: u32, ratio: i32, pattern: u128, slack: u32) -> u32 {
+    let mut edges = TailEdges::new(head, ratio, pattern);
+    let at = far_edge(ratio).wrapping_add(slack);
+    (0..TAIL_PAIRS)
+        .filter(|_| edges.next(ring).unsigned_abs() >= at)
+        .count() as u32
+}
+
 /// Far edges ([`far_edge`]) of one tail from which it is an excursion on a line
 /// whose recent tails had (nearly) none ([`excursion`]): half of the
 /// [`TAIL_PAIRS`], what a whole-bit read of the last 4 pairs leaves.

@@ -757,6 +757,9 @@ impl HansRx {
             })
             || self.rephased(ref_pattern)
             || (measured.tail.is_none() && self.looked_again(ref_pattern))
+            || measured
+                .tail
+                .is_some_and(|t| self.near_bound(t, ref_pattern))
         {
             confirmed = same;
         }
@@ -956,6 +959,27 @@ impl HansRx {
         self.timing.tail = checked.sum;
         self.timing.count_tail(t);
         checked.sum.is_some()
+    }
+
+    /// EXPERIMENT: excursion re-counted with far edges FAR_SLACK beyond the bound.
+    #[cold]
+    #[inline(never)]
+    fn near_bound(&mut self, t: confirm::Tail, pattern: u128) -> bool {
+        if self.timing.steady() {
+            return false;
+        }
+        let Some(Second { ring, head, .. }) =
+            second(&self.rings, &self.channels, &self.timing, self.reference)
+        else {
+            return false;
+        };
+        let far = confirm::far_beyond(ring, head, self.timing.ratio, pattern, confirm::FAR_SLACK);
+        let again = confirm::Tail { far, ..t };
+        if confirm::excursion(again, self.timing.clean(), self.timing.steady()) {
+            return false;
+        }
+        self.timing.tail = Some(t.sum);
+        true
     }
 
     /// After the reference's frame (read at the timing and its delay as
