@@ -39,7 +39,9 @@
 //!    frame's edges show a rounding step of a clean line near a whole number of
 //!    samples a bit, [`confirm::stepped`]: then it is re-read at its successor's
 //!    phase and must pass every check there, and the timing moves there,
-//!    `HansRx::rephased`). Channels
+//!    `HansRx::rephased`; and a tail rejected as a short excursion on a
+//!    jittered line is counted again 1/32 sample beyond the far bound,
+//!    `HansRx::recounted`). Channels
 //!    that matched the reference centre for centre hold one pattern and are
 //!    confirmed together by the first of them whose edges all pass. The
 //!    **reference** channel's 125 bit centres are gathered two windows (of 32
@@ -742,8 +744,10 @@ impl HansRx {
         // their own.
         // Failing that, a frame whose edges show a rounding step is confirmed
         // re-read at the phase they show, and the timing moves there
-        // (`rephased`); and the reference's tail gets its second look
-        // (`looked_again`).
+        // (`rephased`); the reference's tail gets its second look
+        // (`looked_again`); and a reference tail rejected as an excursion on a
+        // line that is not steady is counted again a hair beyond the far bound
+        // (`recounted`).
         let mut confirmed = 0u8;
         // The reference's own tail deviation, when it confirmed the frame itself:
         // the settled timing's phase measurement (`Timing::advance`).
@@ -759,7 +763,7 @@ impl HansRx {
             || (measured.tail.is_none() && self.looked_again(ref_pattern))
             || measured
                 .tail
-                .is_some_and(|t| self.near_bound(t, ref_pattern))
+                .is_some_and(|t| self.recounted(t, ref_pattern))
         {
             confirmed = same;
         }
@@ -961,10 +965,35 @@ impl HansRx {
         checked.sum.is_some()
     }
 
-    /// EXPERIMENT: excursion re-counted with far edges FAR_SLACK beyond the bound.
+    /// When the reference's tail passed its bounds but was rejected as a short
+    /// excursion ([`confirm::excursion`]; `t` as [`confirm::tail`] measured it,
+    /// with the frame read as `pattern`) on a line that is not steady
+    /// (`Timing::steady`: jitter to speak of): true when it is confirmed after
+    /// all because fewer than [`confirm::FAR_EDGES`] of its edges lie
+    /// [`confirm::FAR_SLACK`] (1/32 sample) or more beyond the far bound
+    /// ([`confirm::far_beyond`]). The tail is then the timing's phase
+    /// measurement, as a confirmed one is; the line's record
+    /// (`Timing::count_tail`) still counts its far edges at the bound.
+    ///
+    /// Why: the record and the frame counted far edges at one bound, so a
+    /// jittered line whose edges a sample off measured a hair under it (and
+    /// counted as clean) lost a frame as soon as the timing moved them a hair
+    /// over: at 4x with the timing a quarter sample off the sampling grid
+    /// every edge a sample early measures 1.25 samples (the bound) to a
+    /// hundredth, 1.249 on one frame and 1.251 two frames later; at 3x with
+    /// a 0.01 % offset late edges moved from 0.84..0.90 sample to 0.95 within
+    /// two frames (`limits_over_many_locks` at 640 locks a point, seeds 20587,
+    /// 323 and 10185, docs/engineering-log.md 2026-12-03 `tol25`). A slack
+    /// between the two is a hysteresis: the frame is judged with a bound the
+    /// record's edges had to stay under. Not on a steady line, whose edges sit
+    /// at fixed roundings: at 3.2x the far bound is one sample, where a
+    /// slipped edge a sample off measures on a line without jitter, and the
+    /// slack published frames not sent there (`tests::tail::BEYOND`, 3 and 4
+    /// pairs, +2 to +6 lines, tried 2026-12-04). Cold: a good line needs it
+    /// about once in 10^4 frames.
     #[cold]
     #[inline(never)]
-    fn near_bound(&mut self, t: confirm::Tail, pattern: u128) -> bool {
+    fn recounted(&mut self, t: confirm::Tail, pattern: u128) -> bool {
         if self.timing.steady() {
             return false;
         }
@@ -973,9 +1002,9 @@ impl HansRx {
         else {
             return false;
         };
-        let far = confirm::far_beyond(ring, head, self.timing.ratio, pattern, confirm::FAR_SLACK);
-        let again = confirm::Tail { far, ..t };
-        if confirm::excursion(again, self.timing.clean(), self.timing.steady()) {
+        let ratio = self.timing.ratio;
+        let far = confirm::far_beyond(ring, head, ratio, pattern, confirm::FAR_SLACK);
+        if confirm::excursion(confirm::Tail { far, ..t }, self.timing.clean(), false) {
             return false;
         }
         self.timing.tail = Some(t.sum);
