@@ -744,10 +744,10 @@ impl HansRx {
         // their own.
         // Failing that, a frame whose edges show a rounding step is confirmed
         // re-read at the phase they show, and the timing moves there
-        // (`rephased`); the reference's tail gets its second look
-        // (`looked_again`); and a reference tail rejected as an excursion on a
-        // line that is not steady is counted again a hair beyond the far bound
-        // (`recounted`).
+        // (`rephased`), a reference tail rejected as an excursion on a line
+        // that is not steady is counted again a hair beyond the far bound
+        // (`recounted`), and the reference's tail gets its second look
+        // (`looked_again`).
         let mut confirmed = 0u8;
         // The reference's own tail deviation, when it confirmed the frame itself:
         // the settled timing's phase measurement (`Timing::advance`).
@@ -759,11 +759,8 @@ impl HansRx {
                     .sum
                     .is_some()
             })
-            || self.rephased(ref_pattern)
+            || self.rephased_or_recounted(ref_pattern)
             || (measured.tail.is_none() && self.looked_again(ref_pattern))
-            || measured
-                .tail
-                .is_some_and(|t| self.recounted(t, ref_pattern))
         {
             confirmed = same;
         }
@@ -965,15 +962,27 @@ impl HansRx {
         checked.sum.is_some()
     }
 
-    /// When the reference's tail passed its bounds but was rejected as a short
-    /// excursion ([`confirm::excursion`]; `t` as [`confirm::tail`] measured it,
-    /// with the frame read as `pattern`) on a line that is not steady
-    /// (`Timing::steady`: jitter to speak of): true when it is confirmed after
-    /// all because fewer than [`confirm::FAR_EDGES`] of its edges lie
+    /// [`HansRx::rephased`], failing that [`HansRx::recounted`]: one cold call
+    /// in [`HansRx::frame`]'s chain of fallbacks. A call of its own there
+    /// (however cold) moved the steady state's code: +18 instructions a frame
+    /// on every `hans rx` row (QEMU, 2026-12-04).
+    #[cold]
+    #[inline(never)]
+    fn rephased_or_recounted(&mut self, pattern: u128) -> bool {
+        self.rephased(pattern) || self.recounted(pattern)
+    }
+
+    /// When the reference's frame (read at the timing and its delay as
+    /// `pattern`) failed its confirmation on every channel holding it, its
+    /// tail within its bounds ([`confirm::tail`]) but rejected as a short
+    /// excursion ([`confirm::excursion`]) on a line that is not steady
+    /// (`Timing::steady`: jitter to speak of), and both start edges in their
+    /// windows: true when fewer than [`confirm::FAR_EDGES`] of its edges lie
     /// [`confirm::FAR_SLACK`] (1/32 sample) or more beyond the far bound
     /// ([`confirm::far_beyond`]). The tail is then the timing's phase
     /// measurement, as a confirmed one is; the line's record
-    /// (`Timing::count_tail`) still counts its far edges at the bound.
+    /// (`Timing::count_tail`, in [`HansRx::frame`]) still counts its far edges
+    /// at the bound.
     ///
     /// Why: the record and the frame counted far edges at one bound, so a
     /// jittered line whose edges a sample off measured a hair under it (and
@@ -991,20 +1000,36 @@ impl HansRx {
     /// slack published frames not sent there (`tests::tail::BEYOND`, 3 and 4
     /// pairs, +2 to +6 lines, tried 2026-12-04). Cold: a good line needs it
     /// about once in 10^4 frames.
-    #[cold]
-    #[inline(never)]
-    fn recounted(&mut self, t: confirm::Tail, pattern: u128) -> bool {
+    fn recounted(&mut self, pattern: u128) -> bool {
         if self.timing.steady() {
             return false;
         }
-        let Some(Second { ring, head, .. }) =
-            second(&self.rings, &self.channels, &self.timing, self.reference)
+        let ratio = self.timing.ratio;
+        let Some(Second {
+            ring,
+            head,
+            next,
+            w,
+            ..
+        }) = second(&self.rings, &self.channels, &self.timing, self.reference)
         else {
             return false;
         };
-        let ratio = self.timing.ratio;
+        if ![head, next]
+            .into_iter()
+            .all(|at| start_edge(ring, at, w).is_some())
+        {
+            return false;
+        }
+        // Only a tail that the excursion check alone rejected.
+        let Some(t) = confirm::tail(ring, head, ratio, pattern) else {
+            return false;
+        };
+        let clean = self.timing.clean();
         let far = confirm::far_beyond(ring, head, ratio, pattern, confirm::FAR_SLACK);
-        if confirm::excursion(confirm::Tail { far, ..t }, self.timing.clean(), false) {
+        if !confirm::excursion(t, clean, false)
+            || confirm::excursion(confirm::Tail { far, ..t }, clean, false)
+        {
             return false;
         }
         self.timing.tail = Some(t.sum);
