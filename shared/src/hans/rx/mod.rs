@@ -998,8 +998,8 @@ impl HansRx {
     /// at fixed roundings: at 3.2x the far bound is one sample, where a
     /// slipped edge a sample off measures on a line without jitter, and the
     /// slack published frames not sent there (`tests::tail::BEYOND`, 3 and 4
-    /// pairs, +2 to +6 lines, tried 2026-12-04). Cold: a good line needs it
-    /// about once in 10^4 frames.
+    /// pairs, +2 to +6 lines, tried 2026-12-04). Cold: only a frame that
+    /// failed every other confirmation gets here.
     fn recounted(&mut self, pattern: u128) -> bool {
         if self.timing.steady() {
             return false;
