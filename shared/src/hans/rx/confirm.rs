@@ -97,6 +97,14 @@
 //! a third of them, so the check stays off for it. Counted on the
 //! reference's settled tails; one subtract and add an edge.
 //!
+//! The record and the frame count far edges at one bound, so a jittered line
+//! whose edges a sample off measure a hair under it counts as clean, and loses
+//! a frame once the timing moves them a hair over (at 4x with the timing a
+//! quarter sample off the sampling grid those edges measure the bound to a
+//! hundredth). On a line that is not steady, a reference tail rejected so is
+//! counted again with the bound [`FAR_SLACK`] further out
+//! (`HansRx::recounted`, cold): a hysteresis between record and judgement.
+//!
 //! A slip of only the last 3 pairs leaves 3 far edges. On a line whose
 //! checked edges all measure within 3/4 sample of the timing ([`OFF_EDGE`],
 //! `Timing::steady`: no jitter to speak of) a good tail has no far edge
@@ -326,6 +334,29 @@ fn between_pairs(ring: &Ring, head: u32, ratio: i32, pattern: u32) -> bool {
 /// bit less up to a sample: a third of a bit at 3x).
 pub fn far_edge(ratio: i32) -> u32 {
     (ratio as u32 / 16).wrapping_mul(5)
+}
+
+/// How far (Q16 samples) beyond [`far_edge`] an edge of a tail that
+/// [`excursion`] rejected on a line that is not steady must lie to count on
+/// the second count (`HansRx::recounted`, [`far_beyond`]): 1/32 sample, a
+/// hysteresis between the line's record (`Timing::clean`, counted at the
+/// bound) and the frame's judgement. Measured (`limits_over_many_locks` at 640
+/// locks a point, docs/engineering-log.md 2026-12-04): the three locks that
+/// lost a frame to edges a hundredth of a sample over the bound keep it, and
+/// `tests::tail`'s tables and `tests::rounding` are unchanged.
+pub const FAR_SLACK: u32 = 1 << (FRAC - 5);
+
+/// How many of the last [`TAIL_PAIRS`] mid-pair edges of the frame at `head`
+/// (as for [`tail`]) lie [`far_edge`] plus `slack` (Q16 samples) or more off,
+/// whichever way: [`Tail::far`] with a wider bound. Cold (`HansRx::recounted`).
+pub fn far_beyond(ring: &Ring, head: u32, ratio: i32, pattern: u128, slack: u32) -> u32 {
+    let mut edges = TailEdges::new(head, ratio, pattern);
+    let at = far_edge(ratio).wrapping_add(slack);
+    let mut far = 0;
+    for _ in 0..TAIL_PAIRS {
+        far += u32::from(edges.next(ring).unsigned_abs() >= at);
+    }
+    far
 }
 
 /// Far edges ([`far_edge`]) of one tail from which it is an excursion on a line
@@ -841,6 +872,13 @@ mod tests {
                 let at = f64::from(far_edge(r)) / Q;
                 let (fewest, most) = far_count(&ring, head, r, pattern, at);
                 prop_assert!((fewest..=most).contains(&far), "{} {} {}", far, fewest, most);
+                // The second count: at the bound, the same; `FAR_SLACK`
+                // further out, those at least that far off.
+                prop_assert_eq!(far_beyond(&ring, head, r, pattern, 0), far);
+                let at = f64::from(far_edge(r) + FAR_SLACK) / Q;
+                let (fewest, most) = far_count(&ring, head, r, pattern, at);
+                let beyond = far_beyond(&ring, head, r, pattern, FAR_SLACK);
+                prop_assert!((fewest..=most).contains(&beyond), "{} {} {}", beyond, fewest, most);
                 // The off ones those at least `OFF_EDGE` off.
                 let at = f64::from(OFF_EDGE) / Q;
                 let (fewest, most) = far_count(&ring, head, r, pattern, at);

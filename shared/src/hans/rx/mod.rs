@@ -39,7 +39,9 @@
 //!    frame's edges show a rounding step of a clean line near a whole number of
 //!    samples a bit, [`confirm::stepped`]: then it is re-read at its successor's
 //!    phase and must pass every check there, and the timing moves there,
-//!    `HansRx::rephased`). Channels
+//!    `HansRx::rephased`; and a tail rejected as a short excursion on a
+//!    jittered line is counted again 1/32 sample beyond the far bound,
+//!    `HansRx::recounted`). Channels
 //!    that matched the reference centre for centre hold one pattern and are
 //!    confirmed together by the first of them whose edges all pass. The
 //!    **reference** channel's 125 bit centres are gathered two windows (of 32
@@ -742,7 +744,9 @@ impl HansRx {
         // their own.
         // Failing that, a frame whose edges show a rounding step is confirmed
         // re-read at the phase they show, and the timing moves there
-        // (`rephased`); and the reference's tail gets its second look
+        // (`rephased`), a reference tail rejected as an excursion on a line
+        // that is not steady is counted again a hair beyond the far bound
+        // (`recounted`), and the reference's tail gets its second look
         // (`looked_again`).
         let mut confirmed = 0u8;
         // The reference's own tail deviation, when it confirmed the frame itself:
@@ -755,7 +759,7 @@ impl HansRx {
                     .sum
                     .is_some()
             })
-            || self.rephased(ref_pattern)
+            || self.rephased_or_recounted(ref_pattern)
             || (measured.tail.is_none() && self.looked_again(ref_pattern))
         {
             confirmed = same;
@@ -956,6 +960,80 @@ impl HansRx {
         self.timing.tail = checked.sum;
         self.timing.count_tail(t);
         checked.sum.is_some()
+    }
+
+    /// [`HansRx::rephased`], failing that [`HansRx::recounted`]: one cold call
+    /// in [`HansRx::frame`]'s chain of fallbacks. A call of its own there
+    /// (however cold) moved the steady state's code: +18 instructions a frame
+    /// on every `hans rx` row (QEMU, 2026-12-04).
+    #[cold]
+    #[inline(never)]
+    fn rephased_or_recounted(&mut self, pattern: u128) -> bool {
+        self.rephased(pattern) || self.recounted(pattern)
+    }
+
+    /// When the reference's frame (read at the timing and its delay as
+    /// `pattern`) failed its confirmation on every channel holding it, its
+    /// tail within its bounds ([`confirm::tail`]) but rejected as a short
+    /// excursion ([`confirm::excursion`]) on a line that is not steady
+    /// (`Timing::steady`: jitter to speak of), and both start edges in their
+    /// windows: true when fewer than [`confirm::FAR_EDGES`] of its edges lie
+    /// [`confirm::FAR_SLACK`] (1/32 sample) or more beyond the far bound
+    /// ([`confirm::far_beyond`]). The tail is then the timing's phase
+    /// measurement, as a confirmed one is; the line's record
+    /// (`Timing::count_tail`, in [`HansRx::frame`]) still counts its far edges
+    /// at the bound.
+    ///
+    /// Why: the record and the frame counted far edges at one bound, so a
+    /// jittered line whose edges a sample off measured a hair under it (and
+    /// counted as clean) lost a frame as soon as the timing moved them a hair
+    /// over: at 4x with the timing a quarter sample off the sampling grid
+    /// every edge a sample early measures 1.25 samples (the bound) to a
+    /// hundredth, 1.249 on one frame and 1.251 two frames later; at 3x with
+    /// a 0.01 % offset late edges moved from 0.84..0.90 sample to 0.95 within
+    /// two frames (`limits_over_many_locks` at 640 locks a point, seeds 20587,
+    /// 323 and 10185, docs/engineering-log.md 2026-12-03 `tol25`). A slack
+    /// between the two is a hysteresis: the frame is judged with a bound the
+    /// record's edges had to stay under. Not on a steady line, whose edges sit
+    /// at fixed roundings: at 3.2x the far bound is one sample, where a
+    /// slipped edge a sample off measures on a line without jitter, and the
+    /// slack published frames not sent there (`tests::tail::BEYOND`, 3 and 4
+    /// pairs, +2 to +6 lines, tried 2026-12-04). Cold: only a frame that
+    /// failed every other confirmation gets here.
+    fn recounted(&mut self, pattern: u128) -> bool {
+        if self.timing.steady() {
+            return false;
+        }
+        let ratio = self.timing.ratio;
+        let Some(Second {
+            ring,
+            head,
+            next,
+            w,
+            ..
+        }) = second(&self.rings, &self.channels, &self.timing, self.reference)
+        else {
+            return false;
+        };
+        if ![head, next]
+            .into_iter()
+            .all(|at| start_edge(ring, at, w).is_some())
+        {
+            return false;
+        }
+        // Only a tail that the excursion check alone rejected.
+        let Some(t) = confirm::tail(ring, head, ratio, pattern) else {
+            return false;
+        };
+        let clean = self.timing.clean();
+        let far = confirm::far_beyond(ring, head, ratio, pattern, confirm::FAR_SLACK);
+        if !confirm::excursion(t, clean, false)
+            || confirm::excursion(confirm::Tail { far, ..t }, clean, false)
+        {
+            return false;
+        }
+        self.timing.tail = Some(t.sum);
+        true
     }
 
     /// After the reference's frame (read at the timing and its delay as
