@@ -223,6 +223,8 @@ fn the_miss_after_a_late_claim_is_lifted_by_the_next_look() {
         Claim::Late { next: p + 2 }
     );
     next = p + 2;
+    // The rule before, beside it: the flag cleared at the underrun only.
+    let mut before = false;
     r.look(&g);
     assert!(!r.stale);
     assert_eq!(r.restarts, 1);
@@ -232,6 +234,7 @@ fn the_miss_after_a_late_claim_is_lifted_by_the_next_look() {
     assert_eq!((lead, body), (Words::Idle, Words::Idle));
     assert!(a.gate_off);
     r.guard(&a);
+    before |= a.gate_off;
     assert!(r.stale);
     // The next batch is on time; the look after it sees the count moved.
     writer_on_time(&mut g, &mut ring, &mut next);
@@ -248,6 +251,7 @@ fn the_miss_after_a_late_claim_is_lifted_by_the_next_look() {
     }
     assert!(!r.stale);
     assert_eq!(r.restarts, 2);
+    assert!(before, "the rule before lifts the refusal after all");
 }
 
 /// A miss between the writer's read of the count and its clear (the guard runs
