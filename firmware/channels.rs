@@ -196,6 +196,17 @@ pub static LASER_GATE: Mutex<CriticalSectionRawMutex, RefCell<Option<Output<'sta
 /// no frames); [`laser_gate_allowed`] refuses the gate until the bridge has
 /// restarted its gate rule and cleared it ([`clear_output_stale`]). One flag for both
 /// guards: an image drives one head.
+///
+/// One discipline for clearing it, in both bridge loops: the guard counts every
+/// miss (every time it sets this flag, under its lock); the loop, after every
+/// batch, compares the count with the one it last acted on, and when it moved
+/// restarts its gate rule and then clears the flag only if the count is still
+/// the one it read (`WaveOut::clear_stale_if`, `SerialTx::clear_stale_if`, under
+/// the guard's lock). A miss between the loop's read and its clear thus keeps the
+/// flag for the loop's next look, and the flag is never cleared unless the gate
+/// rule restarted after the last miss. A clear without the count (at the waveform
+/// loop's underrun) loses the miss that a late claim's skipped half brings after
+/// the underrun: the flag would stay set for good.
 static OUTPUT_STALE: AtomicBool = AtomicBool::new(false);
 
 /// False while an output ring guard reports a missed refresh and the bridge has not
@@ -215,8 +226,9 @@ pub fn output_stale_gate_off() {
     OUTPUT_STALE.store(true, Ordering::Release);
 }
 
-/// The bridge restarted its gate rule after a guard's miss (or a new output starts):
-/// the gate may open again by that rule.
+/// The bridge restarted its gate rule after a guard's miss and the guard has not
+/// missed since (or a new output starts): the gate may open again by that rule.
+/// Only under the guard's lock, after its count said so ([`OUTPUT_STALE`]).
 pub fn clear_output_stale() {
     OUTPUT_STALE.store(false, Ordering::Release);
 }
@@ -299,7 +311,9 @@ pub struct Stats {
     pub output_frames: AtomicU32,
     /// Output halves written (waveform) / HANS ring laps.
     pub output_halves: AtomicU32,
-    /// Output underruns (DMA replayed stale words).
+    /// Output underruns: a waveform batch dropped as too late for its half (the ring
+    /// guard plays idle words instead), a HANS-100 loop wake a lap or more late,
+    /// an SAI FIFO underrun.
     pub output_underruns: AtomicU32,
     /// Backchannel packets received.
     pub back_packets: AtomicU32,

@@ -55,7 +55,10 @@
 //!   written for this lap, the guard drives the laser gate pin low and raises
 //!   `channels`' stale flag (the waveform guard's: one mechanism), which refuses the
 //!   gate until the bridge has restarted its gate rule
-//!   ([`SerialTx::clear_stale_if`] after [`SerialTx::head_misses`] changed).
+//!   ([`SerialTx::clear_stale_if`] after [`SerialTx::head_misses`] changed: the
+//!   waveform loop's discipline, `shared::bridge::ring_guard` "Misses, and lifting
+//!   the gate refusal"). Every run that drops the gate counts a miss
+//!   ([`head_guard_misses`], the statistics' "guard misses").
 //! - Bound: no frame older than this lap ever plays; a stall shows as up to ~40 us
 //!   of no frames with the gate still on, then the gate drops (a slot-rate check
 //!   would need a 10 us timer interrupt). Cost: a few compares and up to five slot
@@ -127,6 +130,14 @@ static HEAD_GUARD: Mutex<CriticalSectionRawMutex, RefCell<HeadGuard>> =
         guard: SlotGuard::new(),
         ring: 0,
     }));
+
+/// The head ring guard's misses since boot (wrapping; guard runs that found the
+/// DMA on a slot the bridge had not written for this lap, each one a gate drop):
+/// the statistics' "guard misses", also for the hardware-in-the-loop tests. It
+/// counts over every guarded run (`SlotGuard::restart`).
+pub fn head_guard_misses() -> u32 {
+    HEAD_GUARD.lock(|g| g.borrow().guard.missed())
+}
 
 /// The head ring guard (module docs, "No stale frames"): bound on DMA2 stream 3
 /// beside embassy's handler (`tasks::Irqs`), it runs at every half-transfer and
@@ -298,13 +309,14 @@ impl<'a> SerialTx<'a> {
         _irq: impl interrupt::typelevel::Binding<interrupt::typelevel::DMA2_STREAM3, HeadGuardHandler>,
     ) {
         let ring = self.ring as usize;
+        // A new run: the miss count goes on (statistics); no miss of an earlier
+        // run stands against this one's gate rule.
         HEAD_GUARD.lock(|g| {
-            *g.borrow_mut() = HeadGuard {
-                guard: SlotGuard::new(),
-                ring,
-            }
+            let mut g = g.borrow_mut();
+            g.guard.restart();
+            g.ring = ring;
+            crate::channels::clear_output_stale();
         });
-        crate::channels::clear_output_stale();
         // HTIE may be set on the running stream (DMA_SxCR, RM0433 §15.5.5: only the
         // configuration bits are locked while EN = 1); embassy's handler clears HTIF.
         pac::DMA2.st(HEAD_STREAM).cr().modify(|w| w.set_htie(true));
@@ -347,7 +359,7 @@ impl<'a> SerialTx<'a> {
     /// Misses of the head ring guard so far (wrapping): when this changes, restart
     /// the gate rule, then [`SerialTx::clear_stale_if`] with the new count.
     pub fn head_misses(&self) -> u32 {
-        HEAD_GUARD.lock(|g| g.borrow().guard.missed())
+        head_guard_misses()
     }
 
     /// Lets the laser gate open again (by the bridge's rule) unless the guard has

@@ -48,8 +48,14 @@
 //!   miss (the half now playing was not refilled for this lap), sets the rest of it
 //!   and the whole other half to idle, drives the laser gate pin (PF13) low through
 //!   GPIOF BSRR and raises the stale flag, which keeps `channels::set_laser_gate`
-//!   from opening the gate until the bridge has restarted its gate rule
-//!   ([`WaveOut::clear_stale`]). Cost on time: a few compares and 32 stores per half.
+//!   from opening the gate until the bridge has restarted its gate rule. Every
+//!   miss is counted in the guard ([`guard_misses`], the statistics' "guard
+//!   misses"); the bridge looks at the count after every batch and, when it moved,
+//!   restarts its gate rule and lifts the refusal only if no miss came since
+//!   ([`WaveOut::clear_stale_if`], under the guard's lock: `ring_guard`, "Misses,
+//!   and lifting the gate refusal"; a clear at the underrun itself left the miss
+//!   at the half a late claim skips standing for good). Cost on time: a few
+//!   compares and 32 stores per half.
 //!   The head gets idle words (no clock edges: it holds its last position); the
 //!   lead covers the guard's latency (32 words are 4 us at 8 MHz ticks), so not even
 //!   the first word of an old batch plays.
@@ -193,16 +199,16 @@ unsafe fn blank(ring: usize, from: usize, to: usize, idle: u32) {
 /// The guard's work at a boundary (module docs, "No stale words").
 fn on_boundary() {
     let mut blanks = [(0usize, 0usize); 3];
-    let (ring, idle, gate_off) = GUARD.lock(|g| {
+    let (ring, idle) = GUARD.lock(|g| {
         let mut g = g.borrow_mut();
         let half = g.half;
         if g.ring == 0 || half == 0 {
-            return (0, 0, false);
+            return (0, 0);
         }
         let pos = out_position(2 * half);
         if pos / half == (g.guard.playing() % 2) as usize {
             // No boundary since the last call (an interrupt of another flag).
-            return (0, 0, false);
+            return (0, 0);
         }
         let a = g.guard.boundary();
         let lead = LEAD_WORDS.min(half);
@@ -218,14 +224,16 @@ fn on_boundary() {
         if let Some(s) = a.blank_all {
             blanks[2] = (at(s), at(s) + half);
         }
-        (g.ring, g.idle, a.gate_off)
+        if a.gate_off {
+            // Straight to the pin, then the flag the gate-on path checks; under the
+            // lock with the miss count, so a writer's `clear_stale_if` sees both or
+            // neither.
+            output_stale_gate_off();
+        }
+        (g.ring, g.idle)
     });
     if ring == 0 {
         return;
-    }
-    if gate_off {
-        // Straight to the pin, then the flag the gate-on path checks.
-        output_stale_gate_off();
     }
     // Outside the lock: the writer runs below this priority, so nothing else writes
     // the ring now; the blanks outrun the DMA (a store per cycle or two against a
@@ -236,6 +244,14 @@ fn on_boundary() {
     }
     compiler_fence(Ordering::Release);
     BOUNDARY.wake();
+}
+
+/// The ring guard's misses since boot (wrapping; halves the DMA entered that the
+/// bridge had not refilled for this lap, each one a gate drop): the statistics'
+/// "guard misses", also for the hardware-in-the-loop tests. It counts over every
+/// output run (`RingGuard::restart`).
+pub fn guard_misses() -> u32 {
+    GUARD.lock(|g| g.borrow().guard.missed())
 }
 
 /// The output DMA's ring index (0..len) of the next word it fetches.
@@ -433,15 +449,16 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
 
         // The guard knows the ring before the stream can interrupt; the DMA starts at
         // index 0, half 0 of the run.
+        // A new run: the miss count goes on (statistics); no miss of an earlier
+        // output stands against this one's gate rule.
         GUARD.lock(|g| {
-            *g.borrow_mut() = Guarded {
-                guard: RingGuard::new(),
-                ring: ring_addr,
-                half: ring_len / 2,
-                idle,
-            }
+            let mut g = g.borrow_mut();
+            g.guard.restart();
+            g.ring = ring_addr;
+            g.half = ring_len / 2;
+            g.idle = idle;
+            clear_output_stale();
         });
-        clear_output_stale();
         // The stream waits for requests: none come before step 7.
         ring.start();
         // Step 5.
@@ -541,8 +558,9 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
     /// came too late for that half (the DMA plays it, idle, or is about to) `half`
     /// is dropped, [`WaveError::Underrun`] is returned, and the next write goes to
     /// the first half still ahead of the DMA; the status samples then restart at it
-    /// ([`StatusRead::restart`]). After an underrun the caller restarts its laser
-    /// gate rule and calls [`WaveOut::clear_stale`].
+    /// ([`StatusRead::restart`]). After every write (also an underrun) the caller
+    /// looks at [`WaveOut::guard_misses`] and, when it moved, restarts its laser gate
+    /// rule and calls [`WaveOut::clear_stale_if`].
     pub async fn write_half(&mut self, half: &[u32]) -> Result<(), WaveError> {
         let len = self.ring_len / 2;
         if half.len() != len {
@@ -604,10 +622,22 @@ impl<'d, T: AdvancedInstance4Channel> WaveOut<'d, T> {
         Ok(())
     }
 
-    /// Clears the guard's stale flag (`channels::laser_gate_allowed`): call after an
-    /// underrun, once the laser gate rule has restarted.
-    pub fn clear_stale(&mut self) {
-        clear_output_stale();
+    /// The guard's misses so far ([`guard_misses`]): when this changes, restart the
+    /// laser gate rule, then [`WaveOut::clear_stale_if`] with the new count.
+    pub fn guard_misses(&self) -> u32 {
+        guard_misses()
+    }
+
+    /// Lifts the guard's gate refusal (`channels::laser_gate_allowed`) unless the
+    /// guard has missed again since `seen`, the count the caller restarted its gate
+    /// rule for (checked under the guard's lock: a newer miss keeps the refusal for
+    /// the caller's next look; module docs, "No stale words").
+    pub fn clear_stale_if(&mut self, seen: u32) {
+        GUARD.lock(|g| {
+            if g.borrow().guard.clear_if(seen) {
+                clear_output_stale();
+            }
+        });
     }
 
     /// After an underrun: the next write goes to half `next`; the status samples

@@ -158,6 +158,7 @@ pub async fn bridge_wave_out(
         frames_per_batch
     );
     out.start();
+    let mut misses = out.guard_misses();
     // The DMA already plays the idle ring: the drivers may be switched on.
     head_enable.set_high();
 
@@ -229,8 +230,18 @@ pub async fn bridge_wave_out(
                 // gate off: the gate opens again only by the three-batch rule.
                 Stats::bump(&STATS.output_underruns);
                 core.restart_gate();
-                out.clear_stale();
             }
+        }
+        // The guard found the DMA in a half this loop had not refilled (it dropped
+        // the gate): restart the gate rule, then lift the guard's refusal only if
+        // it has not missed again since (`wave_out` "No stale words"). Looked at
+        // after every batch, not only after an underrun: a late claim skips the
+        // next half, whose miss comes after the underrun was seen.
+        let now_misses = out.guard_misses();
+        if now_misses != misses {
+            misses = now_misses;
+            core.restart_gate();
+            out.clear_stale_if(misses);
         }
         if let Some(w) = word_in.as_mut() {
             // `period`: the first slot of the next batch, where samples realigned

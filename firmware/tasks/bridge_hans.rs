@@ -20,8 +20,9 @@
 //! No stale frames: the ring runs under the slot ring guard (`drivers::serial_tx`,
 //! "No stale frames"): a slot this loop did not write for the DMA's current lap is
 //! zeros, never the last lap's frame; if the loop falls behind the DMA the guard
-//! drops the laser gate, and the loop restarts its gate rule (as `bridge_wave_out`
-//! after an underrun) before the gate may open again.
+//! drops the laser gate and counts a miss; the loop, when the count moves,
+//! restarts its gate rule and lifts the guard's refusal only if no miss came since
+//! (the rule `bridge_wave_out` follows too: `channels::OUTPUT_STALE`).
 
 use embassy_stm32::gpio::Output;
 use embassy_time::{Duration, Instant, Ticker};

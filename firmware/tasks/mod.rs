@@ -76,6 +76,18 @@ pub fn input_overruns() -> u32 {
     STATS.input_overruns.load(Ordering::Relaxed)
 }
 
+/// Misses of the output ring guards since boot (wrapping): halves of a waveform
+/// head's ring (`wave_out::guard_misses`) and guard runs of a HANS-100 head's ring
+/// (`serial_tx::head_guard_misses`) that found output the bridge had not refreshed
+/// for this lap, each one a laser gate drop. An image drives one head, so one of
+/// the two counts. Read-only, kept in the guards (never zeroed): the statistics
+/// print its gain per second, the hardware-in-the-loop tests its change over a
+/// stall.
+pub fn guard_misses() -> u32 {
+    crate::drivers::wave_out::guard_misses()
+        .wrapping_add(crate::drivers::serial_tx::head_guard_misses())
+}
+
 /// Watchdog timeout. The IWDG runs from the 32 kHz LSI, independent of the main clocks,
 /// so it also catches a dead PLL. 250 ms is long against the 50 ms feed period (a feed
 /// may be late by a few long critical sections or a defmt burst) and short enough that

@@ -1,6 +1,8 @@
 //! The once-a-second defmt summary: what the line tasks counted ([`STATS`], taken and
-//! zeroed), the head's alarms, and the bridge engine's own view (counters, link state,
-//! alarms) from a [`BridgeSnapshot`] the bridge task copies on request.
+//! zeroed), the output ring guards' misses (read from the guards, which keep on
+//! counting while the bridge loop is stalled), the head's alarms, and the bridge
+//! engine's own view (counters, link state, alarms) from a [`BridgeSnapshot`] the
+//! bridge task copies on request.
 
 use core::sync::atomic::Ordering;
 
@@ -127,8 +129,10 @@ pub async fn stats() {
     let mut head = HEAD_STATUS.anon_receiver();
     let mut ticker = Ticker::every(Duration::from_secs(1));
     let mut before = Counters::default();
-    // `output_frames` counts on (the activity LED watches it): print its gain.
+    // `output_frames` counts on (the activity LED watches it), and the guards'
+    // misses live in the guards (`super::guard_misses`): print their gain.
     let mut frames_before = STATS.output_frames.load(Ordering::Relaxed);
+    let mut misses_before = super::guard_misses();
     loop {
         ticker.next().await;
         // Ask first: the bridge answers after its current batch, while the line
@@ -138,10 +142,11 @@ pub async fn stats() {
         let alarms = head.try_get().map(|s| s.alarms.0).unwrap_or(0);
         let s = &STATS;
         let frames = s.output_frames.load(Ordering::Relaxed);
+        let misses = super::guard_misses();
         defmt::info!(
             "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames ({} refused), {} halves \
-             ({} underruns, {} status realigns), back {} packets ({} resyncs, {} errors), \
-             status changes {} ({} bad frames), head alarms {=u32:#x}",
+             ({} underruns, {} guard misses, {} status realigns), back {} packets ({} resyncs, \
+             {} errors), status changes {} ({} bad frames), head alarms {=u32:#x}",
             Stats::take(&s.input_halves),
             Stats::take(&s.input_overruns),
             Stats::take(&s.sync_marks),
@@ -149,6 +154,7 @@ pub async fn stats() {
             Stats::take(&s.output_refused),
             Stats::take(&s.output_halves),
             Stats::take(&s.output_underruns),
+            misses.wrapping_sub(misses_before),
             Stats::take(&s.status_realigns),
             Stats::take(&s.back_packets),
             Stats::take(&s.back_resyncs),
@@ -158,6 +164,7 @@ pub async fn stats() {
             alarms,
         );
         frames_before = frames;
+        misses_before = misses;
         print_decode();
         match with_timeout(SNAPSHOT_WAIT, BRIDGE_SNAPSHOT.wait()).await {
             Ok(snap) => {

@@ -1,13 +1,20 @@
 //! An XY2-100 controller -> HANS-100 head (`configs/xy2-to-hans.toml`): the XY2-100
-//! input task, the HANS-100 bridge loop and the head's HANS STATUS input.
+//! input task, the HANS-100 bridge loop and the head's HANS STATUS input; and a
+//! stall of the bridge loop longer than the head's ring (the slot ring guard).
 
 #[embedded_test::tests(default_timeout = 10)]
 mod tests {
+    use core::cell::Cell;
+
     use crate::e2e::checks::{assert_identity_axes, capture, laser_gate_high, phase_end};
     use crate::e2e::source::{e2e_positions, frame_of_x, BsrrSource};
     use crate::e2e::xy2_source::{Levels, SRC_FRAMES, SRC_PINS, SRC_TICK_HZ, SRC_TPF};
+    use embassy_stm32::interrupt::typelevel::{Handler, Interrupt, CEC};
+    use embassy_stm32::interrupt::Priority;
     use embassy_stm32::peripherals::PA4;
-    use embassy_stm32::Peri;
+    use embassy_stm32::{bind_interrupts, Peri};
+    use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+    use embassy_sync::blocking_mutex::Mutex;
     use embassy_time::{Duration, Instant};
     use shared::bridge::AfterHold;
     use shared::hans::frame::{write_slot, Frame, RING_BYTES, RING_SLOTS};
@@ -24,7 +31,14 @@ mod tests {
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::oversample_clock;
     use xy_bridge::drivers::serial_tx::SerialTx;
-    use xy_bridge::tasks::Irqs;
+    use xy_bridge::tasks::{self, Irqs};
+
+    bind_interrupts!(
+        /// The stall test's stall (CEC: unused on this board).
+        struct StallIrq {
+            CEC => StallHandler;
+        }
+    );
 
     #[init]
     fn init() -> Board {
@@ -81,6 +95,195 @@ mod tests {
         park: u32,
         park_before_first: u32,
         frames_after_park: u32,
+        /// The stall test's look across the stall: taken; its frames; its largest
+        /// step (not in `max_step`); its runs of zero words longer than any frame
+        /// can hold, those cut by the look's ends, and the longest (words).
+        stall_look: bool,
+        stall_frames: u32,
+        stall_max_step: u32,
+        zero_runs: u32,
+        zero_runs_cut: u32,
+        zero_run_words: u32,
+    }
+
+    /// The stall (us): a busy loop in the CEC interrupt at P5, above the line
+    /// executor (P6, `app::LINE_PRIORITY`, which runs `xy2_in` and
+    /// `bridge_hans_out`) and thread mode, below the DMA handlers and the slot ring
+    /// guard (P0). Longer than the head's ring (8 slots, 80 us) plus what the loop
+    /// writes ahead (30 us) plus a guard period (40 us): the head output runs dry
+    /// whatever the phase, and the guard sees it at four runs at least. Short
+    /// enough that nothing else runs dry: the XY2-100 input ring (two 250 us
+    /// halves) holds less than a half unread when it starts, so 200 us more never
+    /// lap it (no input overrun); the source's ring holds a whole 500 us half
+    /// then (thread mode ran for [`STALL_DELAY_US`] before); the bridge's input
+    /// timeout (1 ms) is not reached (the hold would change the frames).
+    const STALL_US: u64 = 200;
+    /// When the stall starts, from the start of the look that captures it (room
+    /// before it for the read-back's start, after it for the recovery: the look
+    /// is 1638 us).
+    const STALL_DELAY_US: u64 = 300;
+    /// The stall's look: the first one starting 40 ms after the input (the gate is
+    /// on within 10 ms).
+    const STALL_AFTER_INPUT: Duration = Duration::from_millis(40);
+    /// Guard runs (the stream's half-transfer and transfer-complete interrupts)
+    /// come every 62 or 63 bytes of 12.5 MHz bits: 39.68 or 40.32 us (in ns).
+    const RUN_MIN_NS: u64 = 62 * 8 * 80;
+    const RUN_MAX_NS: u64 = 63 * 8 * 80;
+    /// The loop writes each frame two slots ahead of the one the DMA fetches
+    /// (`hans::tx::LEAD_SLOTS`), so at the stall's start the DMA enters a slot
+    /// not written for this lap within three slots (30 us) of the loop's last
+    /// write, which came before the stall.
+    const LEAD_US: u64 = 30;
+    /// After the stall, until the loop writes again: pending P0 handlers,
+    /// `xy2_in` (woken as well: the half completed during the stall) and the
+    /// loop's ~22 overdue slots through the bridge. Estimated, not measured
+    /// (tens of microseconds at 400-480 MHz; a bench run should log the
+    /// probe's figures and tighten this).
+    const CATCH_UP_US: u64 = 100;
+    /// Gate off during the stall: the first guard run after the DMA entered the
+    /// unwritten slot, at most [`LEAD_US`] + a run period in, plus the guard's
+    /// latency and the probe's resolution (1 us each).
+    const GATE_OFF_MAX_US: u64 = LEAD_US + RUN_MAX_NS.div_ceil(1000) + 2;
+    /// Misses the guard counts during the stall: every run from the DMA's entry
+    /// into the first unwritten slot (at most [`LEAD_US`] in; at least 10 us in
+    /// less up to 10 us of the loop's wake-up jitter, so from the start at worst)
+    /// to the stall's end.
+    const MISSES_MIN: u32 = ((STALL_US - LEAD_US) * 1000 / RUN_MAX_NS) as u32;
+    const MISSES_MAX: u32 = (STALL_US * 1000 / RUN_MIN_NS) as u32 + 1;
+    /// Misses after the stall, before the loop's first write publishes a slot
+    /// ahead of the DMA: the runs within [`CATCH_UP_US`].
+    const MISSES_AFTER_MAX: u32 = (CATCH_UP_US * 1000).div_ceil(RUN_MIN_NS) as u32;
+    /// The gate on again after the stall's end: the loop's first write (within
+    /// [`CATCH_UP_US`]), whose look restarts the gate rule, then three wakes
+    /// (10 us apart, `GATE_ON_HISTORY`) with the gate on, and 10 us of jitter.
+    const GATE_BACK_MAX_US: u64 = CATCH_UP_US + 3 * 10 + 10;
+    /// Words of the read-back (16 samples at 40 MHz: 0.4 us each) that no frame
+    /// can hold as zeros: a frame is 125 bits (10 us) starting with its start
+    /// marker `1 1 1 0 1`, so it holds at most 120 zero bits (9.6 us, 24 words),
+    /// and frames follow back to back; 32 words (12.8 us) leave a word either side.
+    const LONG_ZEROS: usize = 32;
+    /// The zeros at the head across the stall (us): from the DMA's entry into the
+    /// first unwritten slot (10..30 us after the loop's last write, which was at
+    /// most 10 us + jitter before the stall) to the loop's first slot after it
+    /// (written within [`CATCH_UP_US`] of the stall's end, two slots ahead: on the
+    /// wire 10..20 us later), the SAI FIFO's lag (under 6 us) the same at both
+    /// ends; 10 us more either side for a frame's trailing zero bits, the word
+    /// grid and jitter.
+    const ZEROS_MIN_US: u64 = STALL_US - LEAD_US - 10;
+    const ZEROS_MAX_US: u64 = STALL_US + CATCH_UP_US + 20 + 10 + 10;
+    /// The largest step between two frames in the stall's look: the slots the
+    /// stall and the catch-up span (one frame each, `SlotEvents`), a half of
+    /// input frames (25) more that may wait beyond the backlog the loop drains
+    /// faster, and the usual 4.
+    const STALL_STEP_MAX: u32 = ((STALL_US + CATCH_UP_US + 20) / 10) as u32 + 25 + 4;
+
+    /// What the stall saw (only P0 runs meanwhile), from its start: the gate then,
+    /// when it first read low (us; `u32::MAX`: never), whether it read high again
+    /// after that; the guards' miss count at its start and end.
+    #[derive(Clone, Copy, Debug, defmt::Format)]
+    struct Probe {
+        ran: bool,
+        gate_at_start: bool,
+        gate_off_us: u32,
+        gate_on_again: bool,
+        misses_at_start: u32,
+        misses_at_end: u32,
+    }
+
+    static PROBE: Mutex<CriticalSectionRawMutex, Cell<Probe>> = Mutex::new(Cell::new(Probe {
+        ran: false,
+        gate_at_start: false,
+        gate_off_us: u32::MAX,
+        gate_on_again: false,
+        misses_at_start: 0,
+        misses_at_end: 0,
+    }));
+
+    /// The CEC interrupt: one busy loop of [`STALL_US`] watching the laser gate,
+    /// with the guard's miss count read at both ends.
+    struct StallHandler;
+
+    impl Handler<CEC> for StallHandler {
+        unsafe fn on_interrupt() {
+            let t0 = Instant::now();
+            let gate_at_start = laser_gate_high();
+            let misses_at_start = tasks::guard_misses();
+            let len = Duration::from_micros(STALL_US);
+            let (mut off, mut on_again) = (u32::MAX, false);
+            loop {
+                let t = t0.elapsed();
+                if t >= len {
+                    break;
+                }
+                let g = laser_gate_high();
+                if off == u32::MAX {
+                    if !g {
+                        off = t.as_micros() as u32;
+                    }
+                } else {
+                    on_again |= g;
+                }
+            }
+            let p = Probe {
+                ran: true,
+                gate_at_start,
+                gate_off_us: off,
+                gate_on_again: on_again,
+                misses_at_start,
+                misses_at_end: tasks::guard_misses(),
+            };
+            PROBE.lock(|c| c.set(p));
+        }
+    }
+
+    /// Readies the stall: CEC at P5, nothing pending; `_irq` proves the handler.
+    fn arm_stall(_irq: impl embassy_stm32::interrupt::typelevel::Binding<CEC, StallHandler>) {
+        PROBE.lock(|c| {
+            c.set(Probe {
+                ran: false,
+                ..c.get()
+            })
+        });
+        CEC::set_priority(Priority::P5);
+        CEC::unpend();
+        // SAFETY: the handler bound for CEC is `StallHandler` (`_irq`), which only
+        // waits, reads pins and the guards' count, and writes `PROBE`.
+        unsafe { CEC::enable() };
+    }
+
+    /// What the reader measured around the stall, in thread mode: the guards'
+    /// miss count just before it was pended, the gate's return after it (us;
+    /// `None`: not within 300 us) and the miss count then.
+    #[derive(Clone, Copy, Debug, Default, defmt::Format)]
+    struct AfterStall {
+        pended: bool,
+        misses_before: u32,
+        gate_back_us: Option<u64>,
+        misses_then: u32,
+    }
+
+    /// Runs of zero words in `words`: those of more than [`LONG_ZEROS`] that the
+    /// look's ends do not cut, those that they cut, and the longest (words).
+    fn zero_runs(words: &[u16]) -> (u32, u32, u32) {
+        let (mut whole, mut cut, mut longest) = (0u32, 0u32, 0usize);
+        let mut start = 0;
+        while start < words.len() {
+            if words[start] != 0 {
+                start += 1;
+                continue;
+            }
+            let len = words[start..].iter().take_while(|&&w| w == 0).count();
+            if len > LONG_ZEROS {
+                if start == 0 || start + len == words.len() {
+                    cut += 1;
+                } else {
+                    whole += 1;
+                    longest = longest.max(len);
+                }
+            }
+            start += len;
+        }
+        (whole, cut, longest as u32)
     }
 
     /// The whole bridge through its own tasks for an XY2-100 controller and a
@@ -113,6 +316,125 @@ mod tests {
     #[test]
     #[timeout(20)]
     async fn bridge_tasks_xy2_to_hans_end_to_end(board: Board) {
+        run(board, false).await;
+    }
+
+    /// A stall of the bridge loop longer than the HANS-100 head's ring (the slot
+    /// ring guard, `serial_tx` "No stale frames"), through the same tasks, source,
+    /// wiring and read-back as `bridge_tasks_xy2_to_hans_end_to_end`: in the first
+    /// look 40 ms into the input, [`STALL_DELAY_US`] after its capture started, the
+    /// reader pends a [`STALL_US`] (200 us) busy loop at P5 (`StallHandler`),
+    /// which holds the line executor (the input task and the bridge loop) and
+    /// thread mode; only P0 (the DMA, the guard) runs. The input ring and the
+    /// source outlast it (no overrun, no hold): the head output alone runs dry.
+    ///
+    /// Checks: every check of the end-to-end test (frames in order across every
+    /// look, each a frame sent or park, none failing its check, the flipped frame
+    /// never, the gate on until the input stops and the STATUS level), with the
+    /// stall's look apart for the step size; and: the stall ran with the gate on
+    /// at its start and no guard miss before it (none from the input's start: the
+    /// loop kept up); the gate off within [`GATE_OFF_MAX_US`] of its start and not
+    /// on again during it; [`MISSES_MIN`]..=[`MISSES_MAX`] guard misses counted
+    /// during it (`tasks::guard_misses`, the statistics' count) and at most
+    /// [`MISSES_AFTER_MAX`] after it; in the stall's look no slot of an earlier
+    /// lap: exactly one run of zeros longer than any frame holds (none cut by the
+    /// look's ends), [`ZEROS_MIN_US`]..=[`ZEROS_MAX_US`] long, and on either side
+    /// only frames sent, in order (a replayed lap would step back), the largest
+    /// step at most [`STALL_STEP_MAX`]; the bridge resumes: the gate on again
+    /// within [`GATE_BACK_MAX_US`] of the stall's end (the reader watches it,
+    /// before the level watch samples again), frames flow to the end.
+    ///
+    /// Jumpers: those of `bridge_tasks_xy2_to_hans_end_to_end`.
+    #[test]
+    #[timeout(20)]
+    async fn bridge_tasks_xy2_to_hans_stall_beyond_output(board: Board) {
+        let (log, after, misses_at_input) = run(board, true).await;
+        let probe = PROBE.lock(|c| c.get());
+        defmt::info!("stall: {}; after: {}", probe, after);
+        // The design's bounds, as the constants' comments derive them.
+        const {
+            assert!(STALL_US * 1000 > 8 * 10_000 + LEAD_US * 1000 + 2 * RUN_MAX_NS);
+            assert!(MISSES_MIN >= 4 && MISSES_MIN <= MISSES_MAX);
+            assert!(ZEROS_MIN_US * 1000 > LONG_ZEROS as u64 * 400);
+        }
+        assert!(after.pended, "no look 40 ms into the input to stall in");
+        assert!(probe.ran, "the stall never ran");
+        assert!(log.stall_look, "the stall's look failed");
+        // Before: the gate on, no miss since the input started.
+        assert!(probe.gate_at_start, "gate off when the stall began");
+        assert_eq!(
+            after.misses_before, misses_at_input,
+            "guard misses before the stall"
+        );
+        assert_eq!(
+            probe.misses_at_start, after.misses_before,
+            "a guard miss between the pend and the stall"
+        );
+        // During: the gate off within the guard's bound and for good.
+        assert!(
+            probe.gate_off_us != u32::MAX,
+            "the gate never went off during the stall"
+        );
+        assert!(
+            u64::from(probe.gate_off_us) <= GATE_OFF_MAX_US,
+            "gate off {} us into the stall (bound {})",
+            probe.gate_off_us,
+            GATE_OFF_MAX_US
+        );
+        assert!(!probe.gate_on_again, "gate on again during the stall");
+        // Counted: a miss per guard run that found the DMA on an unwritten slot.
+        let during = probe.misses_at_end.wrapping_sub(probe.misses_at_start);
+        assert!(
+            (MISSES_MIN..=MISSES_MAX).contains(&during),
+            "{} guard misses during the stall (expected {}..={})",
+            during,
+            MISSES_MIN,
+            MISSES_MAX
+        );
+        let later = after.misses_then.wrapping_sub(probe.misses_at_end);
+        assert!(
+            later <= MISSES_AFTER_MAX,
+            "{} guard misses after the stall",
+            later
+        );
+        // At the head: zeros, never an old lap's frame, across the stall.
+        assert_eq!(log.zero_runs_cut, 0, "the zeros cut by the look's ends");
+        assert_eq!(log.zero_runs, 1, "runs of zeros in the stall's look");
+        let zeros_us = u64::from(log.zero_run_words) * 2 / 5;
+        assert!(
+            (ZEROS_MIN_US..=ZEROS_MAX_US).contains(&zeros_us),
+            "{} us of zeros (expected {}..={})",
+            zeros_us,
+            ZEROS_MIN_US,
+            ZEROS_MAX_US
+        );
+        assert!(
+            log.stall_frames >= 100,
+            "{} frames in the stall's look",
+            log.stall_frames
+        );
+        assert!(
+            log.stall_max_step <= STALL_STEP_MAX,
+            "a step of {} frames across the stall",
+            log.stall_max_step
+        );
+        // Resumed.
+        let back = after
+            .gate_back_us
+            .expect("gate not on again 300 us after the stall");
+        assert!(
+            back <= GATE_BACK_MAX_US,
+            "gate on {} us after the stall (bound {})",
+            back,
+            GATE_BACK_MAX_US
+        );
+    }
+
+    /// The body of the two tests: the end-to-end run, with the stall (`stall`) in
+    /// one look; its checks, then what the stall test checks further: the head's
+    /// log, the reader's measurements around the stall and the guards' miss count
+    /// when the input started.
+    async fn run(board: Board, stall: bool) -> (HeadLog, AfterStall, u32) {
         use embassy_futures::select::{select, Either};
 
         // The baked configuration this test is written for: its roles are the
@@ -227,10 +549,15 @@ mod tests {
 
         // Phases, set by the source: 0 before the input, 1 while frames are written,
         // 2 once the last frame is written (`stop_at`: once it played), 3 done.
-        let phase = core::cell::Cell::new(0u8);
-        let input_at = core::cell::Cell::new(Instant::now());
-        let stop_at = core::cell::Cell::new(None);
-        let underrun = core::cell::Cell::new(false);
+        let phase = Cell::new(0u8);
+        let input_at = Cell::new(Instant::now());
+        let stop_at = Cell::new(None);
+        let underrun = Cell::new(false);
+        let misses_at_input = Cell::new(0u32);
+        let mut after = AfterStall::default();
+        if stall {
+            arm_stall(StallIrq);
+        }
 
         let source_run = async {
             embassy_time::Timer::after_millis(30).await;
@@ -248,6 +575,7 @@ mod tests {
                 }
                 if h == 0 {
                     input_at.set(Instant::now());
+                    misses_at_input.set(tasks::guard_misses());
                     phase.set(1);
                 }
             }
@@ -272,8 +600,12 @@ mod tests {
             let mut last: Option<u32> = None;
             while phase.get() < 3 {
                 let before = phase.get() == 0;
+                let stall_here = stall
+                    && !after.pended
+                    && phase.get() == 1
+                    && input_at.get().elapsed() >= STALL_AFTER_INPUT;
                 let no_nss: Option<Peri<'_, PA4>> = None;
-                let captured = capture(
+                let look = capture(
                     spi.reborrow(),
                     sck.reborrow(),
                     mosi.reborrow(),
@@ -282,14 +614,37 @@ mod tests {
                     &mut *look_ring,
                     &mut words,
                     Duration::from_millis(50),
-                )
-                .await;
+                );
+                // The stall, pended from thread mode while the capture's DMA runs:
+                // it has run when `pend` returns (P5 over thread mode); the gate's
+                // return is then watched here, before any other thread-mode task
+                // (the level watch) runs again.
+                let stall_run = async {
+                    if !stall_here {
+                        return;
+                    }
+                    embassy_time::Timer::after_micros(STALL_DELAY_US).await;
+                    after.pended = true;
+                    after.misses_before = tasks::guard_misses();
+                    CEC::pend();
+                    let end = Instant::now();
+                    while !laser_gate_high() && end.elapsed() < Duration::from_micros(300) {}
+                    if laser_gate_high() {
+                        after.gate_back_us = Some(end.elapsed().as_micros());
+                    }
+                    after.misses_then = tasks::guard_misses();
+                };
+                let (captured, ()) = embassy_futures::join::join(look, stall_run).await;
                 if !captured {
                     log.capture_errors += 1;
                     continue;
                 }
                 log.looks += 1;
                 log.looks_before += u32::from(before);
+                if stall_here {
+                    log.stall_look = true;
+                    (log.zero_runs, log.zero_runs_cut, log.zero_run_words) = zero_runs(&words);
+                }
                 let mut hans = HansRx::new(HANS_FS_HZ, HansMode::Normal { channel: 1 }).unwrap();
                 let mut prev: Option<u32> = None;
                 hans.push(&[&words], &mut |ev| {
@@ -319,6 +674,7 @@ mod tests {
                         return;
                     }
                     log.frames += 1;
+                    log.stall_frames += u32::from(stall_here);
                     log.frames_after_park += u32::from(log.park > 0);
                     log.bad_seen |= is_bad(k);
                     if last.is_some_and(|l| k < l) {
@@ -327,6 +683,9 @@ mod tests {
                     if let Some(p) = prev.filter(|&p| k >= p) {
                         if k == p {
                             log.repeats += 1;
+                        } else if stall_here {
+                            log.distinct += 1;
+                            log.stall_max_step = log.stall_max_step.max(k - p);
                         } else {
                             log.distinct += 1;
                             log.max_step = log.max_step.max(k - p);
@@ -376,5 +735,9 @@ mod tests {
         // The laser gate and the STATUS towards the controller.
         lv.check();
         assert!(!laser_gate_high(), "gate on at the end");
+        if stall {
+            CEC::disable();
+        }
+        (log, after, misses_at_input.get())
     }
 }

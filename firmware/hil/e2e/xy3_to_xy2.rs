@@ -1075,6 +1075,12 @@ mod tests {
     static PROBE_LAST_EDGE_US: AtomicU32 = AtomicU32::new(0);
     static PROBE_GATE_OFF_US: AtomicU32 = AtomicU32::new(u32::MAX);
     static PROBE_EDGES_AFTER_OFF: AtomicU32 = AtomicU32::new(0);
+    /// The ring guard's miss count (`tasks::guard_misses`, the statistics' count)
+    /// at the stall's start and end, and once the test's source finished.
+    static PROBE_MISSES_AT_START: AtomicU32 = AtomicU32::new(0);
+    static PROBE_MISSES_AT_END: AtomicU32 = AtomicU32::new(0);
+    static MISSES_AT_INPUT: AtomicU32 = AtomicU32::new(0);
+    static MISSES_AFTER: AtomicU32 = AtomicU32::new(0);
 
     /// The CEC interrupt: one busy loop of `STALL_LEN_US`, watching the head's CLK
     /// and the laser gate while the line executor (and everything below P5) is
@@ -1085,6 +1091,7 @@ mod tests {
         unsafe fn on_interrupt() {
             let t0 = Instant::now();
             STALL_AT_US.store(t0.as_micros() as u32, Ordering::Relaxed);
+            PROBE_MISSES_AT_START.store(tasks::guard_misses(), Ordering::Relaxed);
             let len = Duration::from_micros(u64::from(STALL_LEN_US.load(Ordering::Relaxed)));
             let clk = || pac::GPIOD.idr().read().idr(0) == pac::gpio::vals::Idr::HIGH;
             let mut level = clk();
@@ -1112,6 +1119,7 @@ mod tests {
             PROBE_LAST_EDGE_US.store(last, Ordering::Relaxed);
             PROBE_GATE_OFF_US.store(off, Ordering::Relaxed);
             PROBE_EDGES_AFTER_OFF.store(after, Ordering::Relaxed);
+            PROBE_MISSES_AT_END.store(tasks::guard_misses(), Ordering::Relaxed);
             STALLED.store(true, Ordering::Relaxed);
         }
     }
@@ -1285,6 +1293,24 @@ mod tests {
         );
         // Idle from there to the stall's end: at least 700 - 512 us.
         assert_eq!(after, 0, "head CLK edges after the gate went off");
+        // Counted (`tasks::guard_misses`, the statistics' count): during the
+        // stall every boundary into an unfilled half, the first within two halves
+        // (500 us) of its start, then one per half (250 us) to its end at 700 us:
+        // 1..=3. After it, the half the late claim skips (`ring_guard::Claim::Late`),
+        // and one more if a boundary fell before the bridge's claim: 1..=2.
+        let at_end = PROBE_MISSES_AT_END.load(Ordering::Relaxed);
+        let during = at_end.wrapping_sub(PROBE_MISSES_AT_START.load(Ordering::Relaxed));
+        let later = MISSES_AFTER.load(Ordering::Relaxed).wrapping_sub(at_end);
+        assert!(
+            (1..=3).contains(&during),
+            "{} guard misses during the stall",
+            during
+        );
+        assert!(
+            (1..=2).contains(&later),
+            "{} guard misses after the stall",
+            later
+        );
     }
 
     /// The body of the two overrun tests, for a stall of `kind`.
@@ -1382,6 +1408,7 @@ mod tests {
                 if h == 0 {
                     input_at.set(Instant::now());
                     overruns_at_input.set(tasks::input_overruns());
+                    MISSES_AT_INPUT.store(tasks::guard_misses(), Ordering::Relaxed);
                     phase.set(1);
                 }
             }
@@ -1456,6 +1483,7 @@ mod tests {
             embassy_futures::join::join4(source_run, stall, gate_sampler, reader).await;
         drop(source);
         CEC::disable();
+        MISSES_AFTER.store(tasks::guard_misses(), Ordering::Relaxed);
         let counts = gate.counts();
         let overruns = tasks::input_overruns().wrapping_sub(overruns_at_input.get());
         let close_after_us = counts
@@ -1482,6 +1510,28 @@ mod tests {
             STALL_ATTEMPTS
         );
         assert!(STALLED.load(Ordering::Relaxed), "the stall never ran");
+        // The ring guard: no miss while the bridge kept up (before the stall;
+        // within the output's queue, none at all).
+        let misses_at_input = MISSES_AT_INPUT.load(Ordering::Relaxed);
+        let misses_at_stall = PROBE_MISSES_AT_START.load(Ordering::Relaxed);
+        defmt::info!(
+            "guard misses: {} at the input, {} at the stall, {} at its end, {} after",
+            misses_at_input,
+            misses_at_stall,
+            PROBE_MISSES_AT_END.load(Ordering::Relaxed),
+            MISSES_AFTER.load(Ordering::Relaxed)
+        );
+        assert_eq!(
+            misses_at_stall, misses_at_input,
+            "guard misses before the stall"
+        );
+        if kind == StallKind::WithinOutput {
+            assert_eq!(
+                MISSES_AFTER.load(Ordering::Relaxed),
+                misses_at_input,
+                "guard misses (the output's queue outlasts the stall)"
+            );
+        }
         // The overrun and its restart.
         assert_eq!(overruns, 1, "input overruns (the stall's X ring lap)");
         counts.check();

@@ -45,6 +45,24 @@
 //!   (the caller counts an underrun), and the halves it missed play idle.
 //! - Catch-up: the head gets fresh words again two to three half periods after the
 //!   writer runs again (the first batch it makes after the late one).
+//!
+//! # Misses, and lifting the gate refusal
+//! Every boundary that finds its half unfilled is a **miss**: it turns the gate off,
+//! and [`RingGuard::missed`] counts it (wrapping `u32`; one per half played idle,
+//! the firmware reports it in the statistics). The firmware keeps a stale flag that
+//! refuses the gate from the guard's miss until the writer has restarted its gate
+//! rule. The writer clears it by the miss count, never unconditionally: it looks at
+//! [`RingGuard::missed`] after every batch; when the count moved from the one it
+//! last acted on, it restarts its gate rule and then lifts the refusal with
+//! [`RingGuard::clear_if`] and the count it read, under the guard's lock. A miss
+//! between its read and its clear (the guard runs above the writer) changes the
+//! count, so the refusal stays, and the writer's next look restarts the rule again.
+//! Why not clear on the writer's own [`Claim::Late`]: the late claim skips the
+//! next half (it claims the one after), so the boundary into that half is one more
+//! miss *after* the writer saw its underrun; a clear at the underrun left the flag
+//! set by that miss for good (the gate refused until the next underrun).
+//! [`RingGuard::restart`] starts a new run of the ring and keeps the count, so the
+//! statistics never go back.
 
 /// Words at the start of each half set to idle when the DMA leaves it: they cover
 /// the guard interrupt's latency when the DMA comes back to an unfilled half (at
@@ -133,10 +151,28 @@ impl RingGuard {
         self.playing
     }
 
-    /// Halves the DMA entered without their words so far (wrapping): a writer that
-    /// sees this change has missed its deadline.
+    /// A new run of the ring (the DMA at half 0 of the idle pre-fill again), with
+    /// the miss count kept: it counts over every run (module docs).
+    pub fn restart(&mut self) {
+        *self = Self {
+            missed: self.missed,
+            ..Self::new()
+        };
+    }
+
+    /// Halves the DMA entered without their words so far (wrapping; every one
+    /// turned the gate off): a writer that sees this change has missed its
+    /// deadline and restarts its gate rule (module docs).
     pub fn missed(&self) -> u32 {
         self.missed
+    }
+
+    /// Whether the gate refusal may be lifted by a writer that restarted its gate
+    /// rule after reading [`RingGuard::missed`] as `seen`: only if no miss came
+    /// since (module docs). The firmware asks under the guard's lock, so no miss
+    /// can come between this answer and the clear.
+    pub fn clear_if(&self, seen: u32) -> bool {
+        self.missed == seen
     }
 
     /// The DMA has entered the next half. The caller carries out the returned

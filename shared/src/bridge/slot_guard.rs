@@ -26,6 +26,16 @@
 //! - If the slot the DMA is fetching was not written for this lap (`written` not
 //!   past it) while the writer is sending, the run is a **miss**: the laser gate
 //!   goes off and stays refused until the writer has restarted its gate rule.
+//!   Every miss is counted ([`SlotGuard::missed`], wrapping `u32`): one per guard
+//!   run (at most one per 40 us half) that turned the gate off, so the count
+//!   moves with every gate drop, and the firmware reports it in the statistics.
+//!   The writer lifts the refusal by that count, as the waveform writer does
+//!   ([`super::ring_guard`], "Misses, and lifting the gate refusal"): after a
+//!   change of [`SlotGuard::missed`] it restarts its gate rule, then clears only
+//!   if [`SlotGuard::clear_if`] the count it read (under the guard's lock): a miss
+//!   in between keeps the refusal for its next look. Counting every gate drop (not
+//!   once per stall) is what makes that exact: a gate drop that did not move the
+//!   count could land after the writer's clear and stay for good.
 //!
 //! # Races (all host-tested)
 //! - The writer finishing as the guard runs: the two never interleave (above), so
@@ -34,7 +44,7 @@
 //! - Wrap-around: a position read while a transfer-complete is pending (NDTR
 //!   reloaded, the guard not yet run) is below the guard's last one: a lap on.
 //! - A far-behind writer: every run blanks what the DMA fetched (at most the whole
-//!   ring) and reports the miss once per stall; the writer's late write lands where
+//!   ring) and reports a miss at every run of the stall; the writer's late write lands where
 //!   its slot number says, ahead of the DMA or (not published in time) on a slot
 //!   the guard blanks at its next run.
 //! - Resume: the first write re-arms the miss check; the DMA plays zeros until the
@@ -68,9 +78,7 @@ pub struct SlotGuard {
     written: u64,
     /// The writer sends nothing (start-up, or the line stopped: the ring is zeros).
     stopped: bool,
-    /// A miss was reported and the writer has not written since.
-    missing: bool,
-    /// Misses reported so far (wrapping).
+    /// Guard runs that turned the gate off so far (wrapping).
     missed: u32,
 }
 
@@ -89,9 +97,17 @@ impl SlotGuard {
             blanked: 0,
             written: 0,
             stopped: true,
-            missing: false,
             missed: 0,
         }
+    }
+
+    /// A new run of the ring (zeros, the DMA at byte 0 again), with the miss count
+    /// kept: it counts over every run (module docs).
+    pub fn restart(&mut self) {
+        *self = Self {
+            missed: self.missed,
+            ..Self::new()
+        };
     }
 
     /// The DMA's absolute byte position, from `pos` (its ring byte, 0..RING_BYTES,
@@ -113,15 +129,16 @@ impl SlotGuard {
         self.fetched(pos) * 8 / FRAME_BITS as u64
     }
 
-    /// Misses so far (wrapping): a writer that sees this change restarts its gate
-    /// rule, then [`SlotGuard::clear_if`].
+    /// Misses so far (wrapping; guard runs that turned the gate off): a writer that
+    /// sees this change restarts its gate rule, then [`SlotGuard::clear_if`].
     pub fn missed(&self) -> u32 {
         self.missed
     }
 
-    /// Whether a miss stands (the gate refused) that the writer has not seen:
-    /// `seen` is the [`SlotGuard::missed`] count the writer acted on. The firmware
-    /// clears its refusal only when this is false, under the guard's lock.
+    /// Whether the gate refusal may be lifted by a writer that restarted its gate
+    /// rule after reading [`SlotGuard::missed`] as `seen`: only if no miss came
+    /// since (module docs). The firmware asks under the guard's lock, so no miss
+    /// can come between this answer and the clear.
     pub fn clear_if(&self, seen: u32) -> bool {
         self.missed == seen
     }
@@ -136,14 +153,12 @@ impl SlotGuard {
         let n = d + ahead as u64;
         self.written = self.written.max(n + 1);
         self.stopped = false;
-        self.missing = false;
         n
     }
 
     /// The writer stopped sending and zeroed the ring: no miss until it writes again.
     pub fn stop(&mut self) {
         self.stopped = true;
-        self.missing = false;
     }
 
     /// A guard run with the DMA at ring byte `pos` (module docs). The caller carries
@@ -165,11 +180,9 @@ impl SlotGuard {
         }
         self.blanked = self.blanked.max(current);
         if !self.stopped && self.written <= current {
+            // Counted at every gate drop (module docs: the writer's clear by count).
             act.gate_off = true;
-            if !self.missing {
-                self.missing = true;
-                self.missed = self.missed.wrapping_add(1);
-            }
+            self.missed = self.missed.wrapping_add(1);
         }
         act
     }

@@ -159,6 +159,141 @@ fn a_stall_plays_idle_with_the_gate_off_then_resumes() {
     assert_eq!((p, lead, body), (14, Words::Of(14), Words::Of(14)));
 }
 
+/// The writer's side of the stale flag (module docs, "Misses, and lifting the gate
+/// refusal"), as `tasks/bridge.rs` runs it after every batch.
+struct Refusal {
+    /// The firmware's stale flag: set at every gate drop.
+    stale: bool,
+    /// The miss count the writer last acted on, and its gate-rule restarts.
+    seen: u32,
+    restarts: u32,
+}
+
+impl Refusal {
+    fn new() -> Self {
+        Self {
+            stale: false,
+            seen: 0,
+            restarts: 0,
+        }
+    }
+    fn guard(&mut self, a: &Actions) {
+        self.stale |= a.gate_off;
+    }
+    /// The look after a batch (written or dropped).
+    fn look(&mut self, g: &RingGuard) {
+        let missed = g.missed();
+        if missed != self.seen {
+            self.seen = missed;
+            self.restarts += 1;
+            if g.clear_if(self.seen) {
+                self.stale = false;
+            }
+        }
+    }
+}
+
+/// A late claim skips the next half, so the DMA misses once more *after* the
+/// writer saw its underrun: a clear at the underrun (the rule before) left the
+/// refusal of that miss standing for good; the look by count after the next batch
+/// lifts it.
+#[test]
+fn the_miss_after_a_late_claim_is_lifted_by_the_next_look() {
+    let mut g = RingGuard::new();
+    let mut ring = Ring::new();
+    let mut r = Refusal::new();
+    let mut next = 2;
+    for _ in 0..4 {
+        boundary(&mut g, &mut ring);
+        writer_on_time(&mut g, &mut ring, &mut next);
+        r.look(&g);
+    }
+    // Stall: two boundaries miss.
+    for _ in 0..3 {
+        let (_, _, _, a) = boundary(&mut g, &mut ring);
+        r.guard(&a);
+    }
+    assert_eq!(g.missed(), 2);
+    assert!(r.stale);
+    // Back: late, the batch dropped; the look restarts the rule and lifts the
+    // refusal (the rule before cleared here too).
+    let p = g.playing();
+    assert_eq!(
+        g.claim(next, (p % 2) as usize, HALF, MARGIN),
+        Claim::Late { next: p + 2 }
+    );
+    next = p + 2;
+    // The rule before, beside it: the flag cleared at the underrun only.
+    let mut before = false;
+    r.look(&g);
+    assert!(!r.stale);
+    assert_eq!(r.restarts, 1);
+    // The half after the playing one was skipped: the DMA misses it, after the
+    // writer's look.
+    let (_, lead, body, a) = boundary(&mut g, &mut ring);
+    assert_eq!((lead, body), (Words::Idle, Words::Idle));
+    assert!(a.gate_off);
+    r.guard(&a);
+    before |= a.gate_off;
+    assert!(r.stale);
+    // The next batch is on time; the look after it sees the count moved.
+    writer_on_time(&mut g, &mut ring, &mut next);
+    r.look(&g);
+    assert!(!r.stale, "the refusal stands after the writer caught up");
+    assert_eq!(r.restarts, 2);
+    // Fresh words from here, no more misses.
+    for _ in 0..4 {
+        let (p, lead, body, a) = boundary(&mut g, &mut ring);
+        assert_eq!((lead, body), (Words::Of(p), Words::Of(p)));
+        assert!(!a.gate_off);
+        writer_on_time(&mut g, &mut ring, &mut next);
+        r.look(&g);
+    }
+    assert!(!r.stale);
+    assert_eq!(r.restarts, 2);
+    assert!(before, "the rule before lifts the refusal after all");
+}
+
+/// A miss between the writer's read of the count and its clear (the guard runs
+/// above the writer) keeps the refusal; the writer's next look lifts it.
+#[test]
+fn a_miss_between_the_writers_read_and_clear_keeps_the_refusal() {
+    let mut g = RingGuard::new();
+    let mut ring = Ring::new();
+    let mut r = Refusal::new();
+    g.boundary();
+    // Half 2 never written: the DMA misses it.
+    let (_, _, _, a) = boundary(&mut g, &mut ring);
+    r.guard(&a);
+    assert_eq!(g.missed(), 1);
+    // The writer reads the count and restarts its gate rule ...
+    let seen = g.missed();
+    // ... and the next boundary (half 3, not written either) comes first.
+    let (_, _, _, a) = boundary(&mut g, &mut ring);
+    r.guard(&a);
+    assert!(!g.clear_if(seen), "a clear by the old count");
+    assert!(r.stale);
+    // The next look: the count moved, so it restarts again and clears.
+    r.seen = seen;
+    r.look(&g);
+    assert!(!r.stale);
+    assert_eq!(r.seen, 2);
+}
+
+#[test]
+fn restart_keeps_the_miss_count() {
+    let mut g = RingGuard::new();
+    g.boundary();
+    assert!(g.boundary().gate_off);
+    g.restart();
+    assert_eq!(g.missed(), 1);
+    assert_eq!(g, {
+        let mut fresh = RingGuard::new();
+        fresh.missed = 1;
+        fresh
+    });
+}
+
 #[test]
 fn claims_wait_while_a_boundary_is_pending_or_the_ring_is_full() {
     let mut g = RingGuard::new();

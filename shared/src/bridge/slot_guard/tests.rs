@@ -25,6 +25,12 @@ struct Model {
     blanks_played: Vec<u64>,
     /// Absolute slots the writer wrote.
     wrote: std::collections::BTreeSet<u64>,
+    /// The firmware's stale flag (`channels`): set at every gate drop, cleared by
+    /// the writer's rule ([`Model::look`]).
+    stale: bool,
+    /// The miss count the writer last acted on, and its gate-rule restarts.
+    seen: u32,
+    restarts: u32,
 }
 
 impl Model {
@@ -36,6 +42,22 @@ impl Model {
             gate_offs: Vec::new(),
             blanks_played: Vec::new(),
             wrote: Default::default(),
+            stale: false,
+            seen: 0,
+            restarts: 0,
+        }
+    }
+
+    /// The writer's look after a write (`tasks/bridge_hans.rs`): a moved miss count
+    /// restarts its gate rule, then the refusal is lifted if no miss came since.
+    fn look(&mut self) {
+        let missed = self.guard.missed();
+        if missed != self.seen {
+            self.seen = missed;
+            self.restarts += 1;
+            if self.guard.clear_if(self.seen) {
+                self.stale = false;
+            }
         }
     }
 
@@ -48,6 +70,7 @@ impl Model {
         }
         if a.gate_off {
             self.gate_offs.push(fetched);
+            self.stale = true;
         }
     }
 
@@ -77,6 +100,7 @@ impl Model {
         }
         self.last = Some(target);
         assert_eq!(self.guard.wrote(target, pos), d + 2);
+        self.look();
     }
 
     /// The DMA fetches absolute byte `fetched`: every slot with bits in it must
@@ -193,19 +217,33 @@ fn stall_plays_zeros_never_old_frames_and_drops_the_gate() {
                         assert!(off.is_some(), "{start}+{len}: no gate off");
                     }
                     assert_eq!(
-                        m.guard.missed(),
-                        u32::from(off.is_some()),
-                        "{start}+{len}: one miss per stall"
+                        m.guard.missed() as usize,
+                        m.gate_offs.len(),
+                        "{start}+{len}: a miss per gate drop"
                     );
+                    // The runs of the stall that saw the DMA on an unwritten slot:
+                    // all of them but those before that slot, or the last one.
+                    if len >= 200 {
+                        assert!(
+                            m.gate_offs.len() as u64 >= (len - 63) / 63,
+                            "{start}+{len}: {:?}",
+                            m.gate_offs
+                        );
+                    }
                 }
             }
             // A stall of more than three slot periods always runs dry.
             if len >= 63 {
                 assert!(first_blank.is_some(), "{start}+{len}");
             }
-            // Resumed: the writer's frames play again, the gate is not dropped again.
+            // Resumed: the writer's frames play again, the gate is not dropped again,
+            // and the writer's rule lifted the refusal (once per look that saw the
+            // count move).
             let resumed = m.gate_offs.last().copied().unwrap_or(0);
             assert!(resumed < start + len + 64, "{start}+{len}: {resumed}");
+            assert!(!m.stale, "{start}+{len}: the gate refused for good");
+            assert_eq!(m.seen, m.guard.missed());
+            assert_eq!(m.restarts > 0, !m.gate_offs.is_empty());
         }
     }
 }
@@ -221,7 +259,14 @@ fn far_behind_writer_and_late_guard() {
             &[(3_000, 13_000), (20_000, 20_400)],
             latency,
         );
-        assert_eq!(m.guard.missed(), 2, "latency {latency}");
+        assert_eq!(
+            m.guard.missed() as usize,
+            m.gate_offs.len(),
+            "latency {latency}"
+        );
+        assert!(!m.stale);
+        // One gate-rule restart per stall: the writer looks once it runs again.
+        assert_eq!(m.restarts, 2, "latency {latency}");
         // During the long stall the gate is refused at every run.
         let during = m
             .gate_offs
@@ -304,6 +349,54 @@ fn stopped_writer_is_no_miss_and_resume_rearms() {
     assert_eq!(g.missed(), 1);
     assert!(g.run(HALF).gate_off);
     assert_eq!(g.missed(), 2);
+}
+
+/// The stale flag's discipline (module docs): a miss between the writer's read of
+/// the count and its clear keeps the refusal; the writer's next look lifts it.
+#[test]
+fn a_miss_between_the_writers_read_and_clear_keeps_the_refusal() {
+    let mut g = SlotGuard::new();
+    let mut stale = false;
+    let mut run = |g: &mut SlotGuard, pos: usize| {
+        if g.run(pos).gate_off {
+            stale = true;
+        }
+        stale
+    };
+    // Slots 0..=2 written; the half run finds the DMA in slot 3: a miss.
+    assert_eq!(g.wrote(2, 0), 2);
+    assert!(run(&mut g, HALF));
+    assert_eq!(g.missed(), 1);
+    // The writer wakes (still behind: nothing written since), reads the count,
+    // restarts its gate rule ...
+    let seen = g.missed();
+    // ... and the lap's run comes before its clear: another miss.
+    assert!(run(&mut g, 0));
+    assert_eq!(g.missed(), 2);
+    assert!(!g.clear_if(seen), "a clear by the old count");
+    // The next look: the writer writes (DMA in slot 10 of lap 1, byte 40), sees
+    // the count moved, restarts again and clears.
+    assert_eq!(g.wrote(4, 40), 12);
+    let seen = g.missed();
+    assert!(g.clear_if(seen));
+    // Caught up: no miss at the next run, so the refusal stays lifted.
+    assert!(!g.run(HALF).gate_off);
+    assert_eq!(g.missed(), seen);
+}
+
+#[test]
+fn restart_keeps_the_miss_count() {
+    let mut g = SlotGuard::new();
+    g.wrote(2, 0);
+    assert!(g.run(HALF).gate_off);
+    g.restart();
+    assert_eq!(g.missed(), 1);
+    let mut fresh = SlotGuard::new();
+    assert_eq!(fresh.missed(), 0);
+    // Otherwise a new run: stopped, lap 0.
+    assert!(!g.run(HALF).gate_off);
+    assert!(!fresh.run(HALF).gate_off);
+    assert_eq!(g.fetched(HALF), fresh.fetched(HALF));
 }
 
 #[test]
@@ -430,6 +523,8 @@ proptest! {
     ) {
         let stalls: Vec<(u64, u64)> = stalls.iter().map(|&(a, l)| (a, a + l)).collect();
         let m = simulate(12_000, SLOT_BYTES, |k| (k % 5) as f64 * jit / 4.0, &stalls, latency);
-        prop_assert!(m.guard.missed() as usize <= stalls.len());
+        prop_assert_eq!(m.guard.missed() as usize, m.gate_offs.len());
+        prop_assert!(m.restarts as usize <= stalls.len());
+        prop_assert!(!m.stale, "the gate refused for good");
     }
 }
