@@ -301,7 +301,9 @@ pub static BRIDGE_SNAPSHOT: Signal<CriticalSectionRawMutex, BridgeSnapshot> = Si
 pub struct Stats {
     /// Raw input halves handed to the bridge.
     pub input_halves: AtomicU32,
-    /// Input halves lost (ring overrun, SPI overrun, bridge queue full).
+    /// Input halves lost (ring overrun, SPI overrun, bridge queue full). Not
+    /// zeroed by the statistics task: it counts on (wrapping) since boot, so the
+    /// hardware-in-the-loop tests can compare it across a run of any length.
     pub input_overruns: AtomicU32,
     /// XY3 frame-end marks seen.
     pub sync_marks: AtomicU32,

@@ -67,7 +67,7 @@ bind_interrupts!(
     }
 );
 
-/// Input halves lost since boot (`Stats::input_overruns`: an SPI or DMA ring
+/// Input halves lost since boot, wrapping (`Stats::input_overruns`: an SPI or DMA ring
 /// overrun, or a half the bridge's queue had no room for). Read-only, for the
 /// hardware-in-the-loop tests: an XY3-100 input restarts its session after every
 /// overrun of a line, so a test that sees a restart and no overrun knows the bridge

@@ -129,9 +129,11 @@ pub async fn stats() {
     let mut head = HEAD_STATUS.anon_receiver();
     let mut ticker = Ticker::every(Duration::from_secs(1));
     let mut before = Counters::default();
-    // `output_frames` counts on (the activity LED watches it), and the guards'
-    // misses live in the guards (`super::guard_misses`): print their gain.
+    // `output_frames` counts on (the activity LED watches it), `input_overruns`
+    // too (the HIL tests compare it across a run, `super::input_overruns`), and the
+    // guards' misses live in the guards (`super::guard_misses`): print their gain.
     let mut frames_before = STATS.output_frames.load(Ordering::Relaxed);
+    let mut overruns_before = super::input_overruns();
     let mut misses_before = super::guard_misses();
     loop {
         ticker.next().await;
@@ -142,13 +144,14 @@ pub async fn stats() {
         let alarms = head.try_get().map(|s| s.alarms.0).unwrap_or(0);
         let s = &STATS;
         let frames = s.output_frames.load(Ordering::Relaxed);
+        let overruns = super::input_overruns();
         let misses = super::guard_misses();
         defmt::info!(
             "1 s: in {} halves ({} lost, {} SYNC marks), out {} frames ({} refused), {} halves \
              ({} underruns, {} guard misses, {} status realigns), back {} packets ({} resyncs, \
              {} errors), status changes {} ({} bad frames), head alarms {=u32:#x}",
             Stats::take(&s.input_halves),
-            Stats::take(&s.input_overruns),
+            overruns.wrapping_sub(overruns_before),
             Stats::take(&s.sync_marks),
             frames.wrapping_sub(frames_before),
             Stats::take(&s.output_refused),
@@ -164,6 +167,7 @@ pub async fn stats() {
             alarms,
         );
         frames_before = frames;
+        overruns_before = overruns;
         misses_before = misses;
         print_decode();
         match with_timeout(SNAPSHOT_WAIT, BRIDGE_SNAPSHOT.wait()).await {
