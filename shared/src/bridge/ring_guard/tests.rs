@@ -1,6 +1,8 @@
 //! Host tests of the ring guard: tables of the named cases and a model of the ring
 //! (what each ring half holds, lead and body apart) driven by random writers,
-//! stalls and races, checking that the DMA never plays words of another half.
+//! stalls and races, checking that the DMA never plays words of another half. The
+//! model and its random walk are [`super::model`], shared with the on-target runner
+//! (`cm7`): the proptest here only draws the steps.
 
 use super::model::{Ring, Step, Walk, Words, HALF, MARGIN};
 use super::*;
