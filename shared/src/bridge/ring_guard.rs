@@ -253,5 +253,8 @@ impl RingGuard {
     }
 }
 
+#[cfg(any(test, feature = "vectors"))]
+#[doc(hidden)]
+pub mod model;
 #[cfg(test)]
 mod tests;

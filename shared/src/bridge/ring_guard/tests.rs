@@ -1,69 +1,20 @@
 //! Host tests of the ring guard: tables of the named cases and a model of the ring
 //! (what each ring half holds, lead and body apart) driven by random writers,
-//! stalls and races, checking that the DMA never plays words of another half.
+//! stalls and races, checking that the DMA never plays words of another half. The
+//! model and its random walk are [`super::model`], shared with the on-target runner
+//! (`cm7`): the proptest here only draws the steps.
 
+use super::model::{Ring, Step, Walk, Words, HALF, MARGIN};
 use super::*;
 use proptest::prelude::*;
 
-const MARGIN: usize = 100;
-const HALF: usize = 1000;
-
-/// What a part of a ring half holds.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Words {
-    Idle,
-    Of(u64),
-}
-
-/// The model ring: per ring half its lead and the rest.
-#[derive(Debug, Clone, Copy)]
-struct Ring {
-    lead: [Words; 2],
-    body: [Words; 2],
-}
-
-impl Ring {
-    fn new() -> Self {
-        Self {
-            lead: [Words::Idle; 2],
-            body: [Words::Idle; 2],
-        }
-    }
-    fn apply(&mut self, a: &Actions) {
-        if let Some(s) = a.blank_lead {
-            self.lead[s] = Words::Idle;
-        }
-        if let Some(s) = a.blank_rest {
-            self.body[s] = Words::Idle;
-        }
-        if let Some(s) = a.blank_all {
-            self.lead[s] = Words::Idle;
-            self.body[s] = Words::Idle;
-        }
-    }
-    fn write(&mut self, n: u64) {
-        let s = (n % 2) as usize;
-        self.lead[s] = Words::Of(n);
-        self.body[s] = Words::Of(n);
-    }
-}
-
-/// One boundary of the model: the DMA enters the next half, plays its lead during
-/// the guard's latency, then the rest after the guard acted. Returns the words
-/// played (lead, body) and the actions.
+/// One boundary of the model, for the named cases (the random walks check each
+/// one in [`Walk::boundary`]). Returns the words played (lead, body) and the
+/// actions.
 fn boundary(g: &mut RingGuard, ring: &mut Ring) -> (u64, Words, Words, Actions) {
-    let p = g.playing() + 1;
-    let s = (p % 2) as usize;
-    let lead = ring.lead[s];
-    let a = g.boundary();
-    assert_eq!(g.playing(), p);
-    ring.apply(&a);
-    (p, lead, ring.body[s], a)
-}
-
-/// Words played in half `p` are its own or idle, never another half's.
-fn fresh_or_idle(p: u64, w: Words) -> bool {
-    w == Words::Idle || w == Words::Of(p)
+    let p = ring.boundary(g);
+    assert_eq!(g.playing(), p.half);
+    (p.half, p.lead, p.body, p.actions)
 }
 
 /// A writer that writes every half on time, and the guard.
@@ -353,18 +304,6 @@ fn a_fill_without_its_claim_is_torn() {
     assert!(a.gate_off);
 }
 
-/// One step of a random run.
-#[derive(Debug, Clone, Copy)]
-enum Step {
-    /// The writer writes its next batch; the copy is overtaken by a boundary
-    /// (`torn`) or not; `left` is where the DMA is in its half.
-    Write { left: usize, torn: bool },
-    /// The DMA crosses a boundary (the writer does nothing).
-    Boundary,
-    /// A claim while the boundary is pending (DMA already in the other ring half).
-    Pending,
-}
-
 fn step() -> impl Strategy<Value = Step> {
     prop_oneof![
         4 => (0..HALF, prop::bool::weighted(0.05)).prop_map(|(left, torn)| Step::Write { left, torn }),
@@ -380,77 +319,11 @@ proptest! {
     /// words again within two boundaries, and `missed` counts the misses.
     #[test]
     fn never_plays_another_halfs_words(steps in proptest::collection::vec(step(), 0..400)) {
-        let mut g = RingGuard::new();
-        let mut ring = Ring::new();
-        let mut next = 2u64;
-        let mut misses = 0u32;
+        // The walk (`model`, shared with the on-target runner) checks every half
+        // played and every claim and fill; the first broken invariant ends it.
+        let mut walk = Walk::new();
         for s in steps {
-            match s {
-                Step::Boundary => {
-                    let (p, lead, body, a) = boundary(&mut g, &mut ring);
-                    prop_assert!(fresh_or_idle(p, lead), "half {} lead {:?}", p, lead);
-                    prop_assert!(fresh_or_idle(p, body), "half {} body {:?}", p, body);
-                    let own = lead == Words::Of(p) && body == Words::Of(p);
-                    if p >= 2 && !own {
-                        prop_assert!(a.gate_off);
-                    }
-                    if a.gate_off {
-                        misses += 1;
-                        prop_assert!(!own);
-                    }
-                    prop_assert_eq!(g.missed(), misses);
-                }
-                Step::Pending => {
-                    let other = ((g.playing() + 1) % 2) as usize;
-                    prop_assert_eq!(g.claim(next, other, HALF, MARGIN), Claim::Wait);
-                }
-                Step::Write { left, torn } => {
-                    let dma = (g.playing() % 2) as usize;
-                    let mut granted = false;
-                    for _ in 0..2 {
-                        match g.claim(next, dma, left, MARGIN) {
-                            Claim::Granted => {
-                                granted = true;
-                                break;
-                            }
-                            Claim::Late { next: n } => {
-                                prop_assert!(n > next);
-                                prop_assert!(n > g.playing());
-                                next = n;
-                            }
-                            Claim::Wait => break,
-                        }
-                    }
-                    if !granted {
-                        continue;
-                    }
-                    prop_assert_eq!(next, g.playing() + 1);
-                    prop_assert!(left >= MARGIN);
-                    if torn {
-                        // The DMA enters the claimed half mid-copy.
-                        let (p, lead, body, a) = boundary(&mut g, &mut ring);
-                        prop_assert_eq!(p, next);
-                        prop_assert!(fresh_or_idle(p, lead) && fresh_or_idle(p, body));
-                        prop_assert!(a.gate_off);
-                        misses += 1;
-                        ring.write(next);
-                        prop_assert_eq!(g.fill(next), Fill::Torn);
-                        // The writer blanks the whole half again (behind the DMA
-                        // harmless, in front of it what it has not played yet).
-                        let s = (next % 2) as usize;
-                        ring.lead[s] = Words::Idle;
-                        ring.body[s] = Words::Idle;
-                    } else {
-                        ring.write(next);
-                        prop_assert_eq!(g.fill(next), Fill::Done);
-                        // Written halves play as written at their boundary.
-                        let (p, lead, body, a) = boundary(&mut g, &mut ring);
-                        prop_assert_eq!((p, lead, body), (next, Words::Of(next), Words::Of(next)));
-                        prop_assert!(!a.gate_off);
-                    }
-                    next += 1;
-                }
-            }
+            prop_assert_eq!(walk.step(s), Ok(()), "step {:?}", s);
         }
     }
 
