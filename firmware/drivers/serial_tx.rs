@@ -59,11 +59,43 @@
 //!   waveform loop's discipline, `shared::bridge::ring_guard` "Misses, and lifting
 //!   the gate refusal"). Every run that drops the gate counts a miss
 //!   ([`head_guard_misses`], the statistics' "guard misses").
-//! - Bound: no frame older than this lap ever plays; a stall shows as up to ~40 us
-//!   of no frames with the gate still on, then the gate drops (a slot-rate check
-//!   would need a 10 us timer interrupt). Cost: a few compares and up to five slot
-//!   blanks (16 byte stores each) per half.
-
+//! - A second trigger runs the same guard once per slot (below, "The slot
+//!   timer"): one state, one lock ([`head_guard_run`]), two interrupts.
+//! - Bound: no frame older than this lap ever plays; a stall shows as at most one
+//!   slot (10 us) of no frames with the gate still on, then the gate drops (below).
+//!
+//! # The slot timer
+//! With the stream's interrupts alone the guard ran every 40 us, so a stall could
+//! leave up to ~40 us of zeros at the head with the gate on. [`HeadSlotTickHandler`]
+//! runs the same guard from TIM7's update interrupt (RM0433 §42 "Basic timers
+//! (TIM6/TIM7)": no pin, no other user; TIM2 is embassy's time driver, TIM1 / TIM3 /
+//! TIM8 the protocol timers, TIM4 / TIM5 the HIL tests'), at P0 like the stream's
+//! handler, every [`SLOT_TICK_NS`] = 8 us of the APB1 timer clock (240 MHz, 1920
+//! ticks; 200 MHz on revision Y, 1600: `board.rs` clock tree).
+//! - Not phase-locked to the SAI, and it need not be: TIM7 counts PLL1, the SAI
+//!   PLL2, from an arbitrary start. A run takes the DMA's absolute slot from NDTR
+//!   and the lap count whenever it comes (`SlotGuard::run` takes any position,
+//!   host-tested) and drops the gate if that slot was not written for this lap.
+//! - Bound: let the DMA start fetching the first slot nobody wrote at t0. TIM7
+//!   raises an update in every 8 us window, so one falls in [t0, t0 + 8 us); its
+//!   run starts at most Δ later, Δ being what delays a P0 interrupt: a critical
+//!   section (the writer's, ~1 us) or another P0 handler (a stream handler of
+//!   this guard runs the same check itself). That run sees the DMA at that slot
+//!   or later, still unwritten unless the writer caught up (then there is no
+//!   stall to stop), and drops the gate: by t0 + 8 us + Δ, i.e. within one slot
+//!   (10 us) for Δ up to 2 us. Any rate of at least one run per slot (period +
+//!   Δ <= 10 us) gives the same bound; the host model runs the guard at random
+//!   positions and rates (`shared::bridge::slot_guard`, "Runs at any position").
+//! - Cost: 125 000 interrupts per second; a run is two 64-bit divisions
+//!   (`__aeabi_uldivmod`), the NDTR read across the AHB/APB bridge, a few
+//!   compares and, about every 10 us, one slot blanked (16 byte stores): roughly
+//!   150..300 cycles, so ~20..40 M cycles per second, ~4..8 % of the 480 MHz core
+//!   (estimated from the disassembly, not measured). The blanking itself is no
+//!   extra: each slot is blanked once either way, now by the first run after the
+//!   DMA leaves it. The HT / TC runs stay (a second trigger if TIM7 stopped).
+//! - Misses: every run that drops the gate counts one, so a stall now counts up
+//!   to ~5 per 40 us (125 000 + 25 000 runs per second) instead of 1; the
+//!   writer's clear-by-count rule is unchanged.
 use core::cell::RefCell;
 use core::marker::PhantomData;
 
