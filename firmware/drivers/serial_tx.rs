@@ -86,13 +86,17 @@
 //!   (10 us) for Δ up to 2 us. Any rate of at least one run per slot (period +
 //!   Δ <= 10 us) gives the same bound; the host model runs the guard at random
 //!   positions and rates (`shared::bridge::slot_guard`, "Runs at any position").
-//! - Cost: 125 000 interrupts per second; a run is two 64-bit divisions
-//!   (`__aeabi_uldivmod`), the NDTR read across the AHB/APB bridge, a few
-//!   compares and, about every 10 us, one slot blanked (16 byte stores): roughly
-//!   150..300 cycles, so ~20..40 M cycles per second, ~4..8 % of the 480 MHz core
-//!   (estimated from the disassembly, not measured). The blanking itself is no
-//!   extra: each slot is blanked once either way, now by the first run after the
-//!   DMA leaves it. The HT / TC runs stay (a second trigger if TIM7 stopped).
+//! - Cost: 125 000 interrupts per second. The costliest run (a slot blanked and
+//!   a miss, as in a stall) is 254 instructions in the cm7 bench (`slot guard: a
+//!   run per slot`; 750 before `SlotGuard::run` lost its 64-bit divisions and
+//!   `blank_slot` its per-byte masks), plus the interrupt's entry and exit, the
+//!   lock and the NDTR read across the AHB/APB bridge (a few tens of cycles):
+//!   ~300 cycles, at most ~38 M per second, ~8 % of the 480 MHz core (9 % at
+//!   400 MHz, revision Y); in normal running a run blanks one slot about every
+//!   10 us, so a little less. The stream's runs alone cost about a fifth of that.
+//!   The blanking itself is no extra: each slot is blanked once either way, now
+//!   by the first run after the DMA leaves it. The HT / TC runs stay (a second
+//!   trigger if TIM7 stopped).
 //! - Misses: every run that drops the gate counts one, so a stall now counts up
 //!   to ~5 per 40 us (125 000 + 25 000 runs per second) instead of 1; the
 //!   writer's clear-by-count rule is unchanged.
