@@ -224,10 +224,11 @@ pub struct HeadSlotTickHandler;
 
 impl interrupt::typelevel::Handler<interrupt::typelevel::TIM7> for HeadSlotTickHandler {
     unsafe fn on_interrupt() {
-        // UIF is rc_w0 (RM0433 §42.4 "TIM6/TIM7 registers", TIMx_SR): writing 0 clears it, and it is
-        // TIM7's only flag. Cleared first: the run that follows outlasts the write's
-        // way to the timer, so the interrupt is not taken again on exit (a second
-        // run would be harmless anyway: a run at the same position changes nothing).
+        // UIF is rc_w0 (RM0433 §42.4 "TIM6/TIM7 registers", TIMx_SR): writing 0
+        // clears it, and it is TIM7's only flag. Cleared first: the run that
+        // follows outlasts the write's way to the timer, so the interrupt is not
+        // taken again on exit (a second run would blank nothing more; in a stall
+        // it would count one more miss, which the writer's rule takes as any).
         pac::TIM7.sr().write(|w| w.set_uif(false));
         head_guard_run();
     }
