@@ -270,6 +270,9 @@ pub struct HansOutRes {
     pub sd: Peri<'static, PE6>,
     /// DMA stream.
     pub dma: Peri<'static, DMA2_CH3>,
+    /// TIM7 (basic timer, no pin): the slot ring guard's slot timer
+    /// (`drivers::serial_tx`, "The slot timer").
+    pub tick: Peri<'static, TIM7>,
 }
 
 /// Head-side HANS-100 STATUS input: SPI6 slave clocked by the TIM3 fs clock
@@ -497,6 +500,7 @@ pub fn init() -> Board {
                 sai: p.SAI1,
                 sd: p.PE6,
                 dma: p.DMA2_CH3,
+                tick: p.TIM7,
             },
             hans_status_in: HansStatusInRes {
                 spi: p.SPI6,

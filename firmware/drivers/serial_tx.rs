@@ -59,11 +59,47 @@
 //!   waveform loop's discipline, `shared::bridge::ring_guard` "Misses, and lifting
 //!   the gate refusal"). Every run that drops the gate counts a miss
 //!   ([`head_guard_misses`], the statistics' "guard misses").
-//! - Bound: no frame older than this lap ever plays; a stall shows as up to ~40 us
-//!   of no frames with the gate still on, then the gate drops (a slot-rate check
-//!   would need a 10 us timer interrupt). Cost: a few compares and up to five slot
-//!   blanks (16 byte stores each) per half.
-
+//! - A second trigger runs the same guard once per slot (below, "The slot
+//!   timer"): one state, one lock ([`head_guard_run`]), two interrupts.
+//! - Bound: no frame older than this lap ever plays; a stall shows as at most one
+//!   slot (10 us) of no frames with the gate still on, then the gate drops (below).
+//!
+//! # The slot timer
+//! With the stream's interrupts alone the guard ran every 40 us, so a stall could
+//! leave up to ~40 us of zeros at the head with the gate on. [`HeadSlotTickHandler`]
+//! runs the same guard from TIM7's update interrupt (RM0433 §42 "Basic timers
+//! (TIM6/TIM7)": no pin, no other user; TIM2 is embassy's time driver, TIM1 / TIM3 /
+//! TIM8 the protocol timers, TIM4 / TIM5 the HIL tests'), at P0 like the stream's
+//! handler, every [`SLOT_TICK_NS`] = 8 us of the APB1 timer clock (240 MHz, 1920
+//! ticks; 200 MHz on revision Y, 1600: `board.rs` clock tree).
+//! - Not phase-locked to the SAI, and it need not be: TIM7 counts PLL1, the SAI
+//!   PLL2, from an arbitrary start. A run takes the DMA's absolute slot from NDTR
+//!   and the lap count whenever it comes (`SlotGuard::run` takes any position,
+//!   host-tested) and drops the gate if that slot was not written for this lap.
+//! - Bound: let the DMA start fetching the first slot nobody wrote at t0. TIM7
+//!   raises an update in every 8 us window, so one falls in [t0, t0 + 8 us); its
+//!   run starts at most Δ later, Δ being what delays a P0 interrupt: a critical
+//!   section (the writer's, ~1 us) or another P0 handler (a stream handler of
+//!   this guard runs the same check itself). That run sees the DMA at that slot
+//!   or later, still unwritten unless the writer caught up (then there is no
+//!   stall to stop), and drops the gate: by t0 + 8 us + Δ, i.e. within one slot
+//!   (10 us) for Δ up to 2 us. Any rate of at least one run per slot (period +
+//!   Δ <= 10 us) gives the same bound; the host model runs the guard at random
+//!   positions and rates (`shared::bridge::slot_guard`, "Runs at any position").
+//! - Cost: 125 000 interrupts per second. The costliest run (a slot blanked and
+//!   a miss, as in a stall) is 254 instructions in the cm7 bench (`slot guard: a
+//!   run per slot`; 750 before `SlotGuard::run` lost its 64-bit divisions and
+//!   `blank_slot` its per-byte masks), plus the interrupt's entry and exit, the
+//!   lock and the NDTR read across the AHB/APB bridge (a few tens of cycles):
+//!   ~300 cycles, at most ~38 M per second, ~8 % of the 480 MHz core (9 % at
+//!   400 MHz, revision Y); in normal running a run blanks one slot about every
+//!   10 us, so a little less. The stream's runs alone cost about a fifth of that.
+//!   The blanking itself is no extra: each slot is blanked once either way, now
+//!   by the first run after the DMA leaves it. The HT / TC runs stay (a second
+//!   trigger if TIM7 stopped).
+//! - Misses: every run that drops the gate counts one, so a stall now counts up
+//!   to ~5 per 40 us (125 000 + 25 000 runs per second) instead of 1; the
+//!   writer's clear-by-count rule is unchanged.
 use core::cell::RefCell;
 use core::marker::PhantomData;
 
@@ -139,33 +175,103 @@ pub fn head_guard_misses() -> u32 {
     HEAD_GUARD.lock(|g| g.borrow().guard.missed())
 }
 
-/// The head ring guard (module docs, "No stale frames"): bound on DMA2 stream 3
-/// beside embassy's handler (`tasks::Irqs`), it runs at every half-transfer and
-/// transfer-complete interrupt of the head's stream, at P0.
+/// One guard run (module docs, "No stale frames"), from either trigger: the
+/// stream's half-transfer / transfer-complete interrupt ([`HeadGuardHandler`]) or
+/// the slot timer ([`HeadSlotTickHandler`]). One state and one lock for both: a run
+/// reads NDTR and decides under the lock, so the two triggers' runs are ordered
+/// like any two runs of one trigger, and `SlotGuard::run` takes any position
+/// (host-tested, `shared::bridge::slot_guard` "Runs at any position").
+fn head_guard_run() {
+    HEAD_GUARD.lock(|g| {
+        let mut g = g.borrow_mut();
+        if g.ring == 0 {
+            return;
+        }
+        let ndtr = pac::DMA2.st(HEAD_STREAM).ndtr().read().ndt() as usize;
+        let act = g.guard.run(ring_index(ndtr, RING_BYTES));
+        // SAFETY: the address of the running ring (set by `arm_head_guard`, which
+        // the ring's `SerialTx` outlives: `Drop` unsets it); the writer writes it
+        // only under this lock, the DMA only reads it.
+        let ring = unsafe { &mut *(g.ring as *mut [u8; RING_BYTES]) };
+        for slot in (0..RING_SLOTS).filter(|k| act.blank & (1 << k) != 0) {
+            // In range: `slot` < RING_SLOTS.
+            let _ = blank_slot(ring, slot);
+        }
+        if act.gate_off {
+            crate::channels::output_stale_gate_off();
+        }
+    });
+}
+
+/// The head ring guard's stream trigger (module docs, "No stale frames"): bound
+/// on DMA2 stream 3 beside embassy's handler (`tasks::Irqs`), it runs the guard at
+/// every half-transfer and transfer-complete interrupt of the head's stream, at P0.
 pub struct HeadGuardHandler;
 
 impl interrupt::typelevel::Handler<interrupt::typelevel::DMA2_STREAM3> for HeadGuardHandler {
     unsafe fn on_interrupt() {
-        HEAD_GUARD.lock(|g| {
-            let mut g = g.borrow_mut();
-            if g.ring == 0 {
-                return;
-            }
-            let ndtr = pac::DMA2.st(HEAD_STREAM).ndtr().read().ndt() as usize;
-            let act = g.guard.run(ring_index(ndtr, RING_BYTES));
-            // SAFETY: the address of the running ring (set by `arm_head_guard`, which
-            // the ring's `SerialTx` outlives: `Drop` unsets it); the writer writes it
-            // only under this lock, the DMA only reads it.
-            let ring = unsafe { &mut *(g.ring as *mut [u8; RING_BYTES]) };
-            for slot in (0..RING_SLOTS).filter(|k| act.blank & (1 << k) != 0) {
-                // In range: `slot` < RING_SLOTS.
-                let _ = blank_slot(ring, slot);
-            }
-            if act.gate_off {
-                crate::channels::output_stale_gate_off();
-            }
-        });
+        head_guard_run();
     }
+}
+
+/// The head ring guard's slot timer period (ns): at least one guard run per 10 us
+/// slot, with room for the run's latency (module docs, "The slot timer").
+pub const SLOT_TICK_NS: u64 = 8_000;
+
+/// The head ring guard's slot trigger (module docs, "The slot timer"): bound on
+/// TIM7's update interrupt (`tasks::Irqs`), at P0, every [`SLOT_TICK_NS`].
+pub struct HeadSlotTickHandler;
+
+impl interrupt::typelevel::Handler<interrupt::typelevel::TIM7> for HeadSlotTickHandler {
+    unsafe fn on_interrupt() {
+        // UIF is rc_w0 (RM0433 §42.4 "TIM6/TIM7 registers", TIMx_SR): writing 0
+        // clears it, and it is TIM7's only flag. Cleared first: the run that
+        // follows outlasts the write's way to the timer, so the interrupt is not
+        // taken again on exit (a second run would blank nothing more; in a stall
+        // it would count one more miss, which the writer's rule takes as any).
+        pac::TIM7.sr().write(|w| w.set_uif(false));
+        head_guard_run();
+    }
+}
+
+/// Starts TIM7 as the guard's slot timer (module docs, "The slot timer"; RM0433
+/// §42 "Basic timers (TIM6/TIM7)"): kernel clock on and reset (RCC_APB1LENR, §8),
+/// PSC = 0 and ARR = ticks - 1 for an update event every [`SLOT_TICK_NS`] of the
+/// APB1 timer clock (240 MHz: 1920 ticks; 200 MHz on revision Y: 1600; both
+/// exact, under ARR's 16 bits), EGR.UG to load them, UIF cleared, DIER.UIE, CR1.CEN
+/// (counting up, ARPE = 0: the period never changes); the update interrupt at P0,
+/// the guard's priority.
+fn start_slot_tick() {
+    use embassy_stm32::interrupt::typelevel::{Interrupt, TIM7};
+    use embassy_stm32::interrupt::Priority;
+
+    rcc::enable_and_reset::<peripherals::TIM7>();
+    let hz = rcc::frequency::<peripherals::TIM7>().0 as u64;
+    let ticks = hz * SLOT_TICK_NS / 1_000_000_000;
+    let t = pac::TIM7;
+    t.psc().write_value(0);
+    // In range on both revisions (above); clamped for any other clock.
+    t.arr()
+        .write(|w| w.set_arr((ticks.clamp(2, 1 << 16) - 1) as u16));
+    t.egr().write(|w| w.set_ug(true));
+    t.sr().write(|w| w.set_uif(false));
+    t.dier().write(|w| w.set_uie(true));
+    TIM7::set_priority(Priority::P0);
+    TIM7::unpend();
+    // SAFETY: the handler bound for TIM7 is `HeadSlotTickHandler` (`arm_head_guard`'s
+    // binding), which runs the guard under its lock and clears TIM7's flag.
+    unsafe { TIM7::enable() };
+    t.cr1().modify(|w| w.set_cen(true));
+}
+
+/// Stops the slot timer and its interrupt (the guarded ring is going away).
+fn stop_slot_tick() {
+    use embassy_stm32::interrupt::typelevel::{Interrupt, TIM7};
+
+    pac::TIM7.cr1().modify(|w| w.set_cen(false));
+    TIM7::disable();
+    pac::TIM7.sr().write(|w| w.set_uif(false));
+    TIM7::unpend();
 }
 
 /// A running circular serial transmitter.
@@ -175,6 +281,8 @@ pub struct SerialTx<'a> {
     ring: *mut [u8; RING_BYTES],
     _ring: PhantomData<&'a mut [u8; RING_BYTES]>,
     _sd: Flex<'a>,
+    /// The guard's slot timer, while this ring is the guarded head ring.
+    tick: Option<Peri<'a, peripherals::TIM7>>,
 }
 
 impl<'a> SerialTx<'a> {
@@ -254,6 +362,7 @@ impl<'a> SerialTx<'a> {
             ring,
             _ring: PhantomData,
             _sd: sd,
+            tick: None,
         }
     }
 
@@ -303,10 +412,13 @@ impl<'a> SerialTx<'a> {
     /// Guards this ring as the HANS-100 head's (module docs, "No stale frames"):
     /// call once, right after [`SerialTx::new`] on DMA2 stream 3 with the ring still
     /// zeros; from then on write it only through [`SerialTx::update_guarded`] and
-    /// [`SerialTx::stop_guarded`]. `irq` proves the guard's handler is bound.
+    /// [`SerialTx::stop_guarded`]. `irq` proves both of the guard's handlers are
+    /// bound; `tick` is the slot timer ("The slot timer"), stopped on drop.
     pub fn arm_head_guard(
         &mut self,
-        _irq: impl interrupt::typelevel::Binding<interrupt::typelevel::DMA2_STREAM3, HeadGuardHandler>,
+        tick: Peri<'a, peripherals::TIM7>,
+        _irq: impl interrupt::typelevel::Binding<interrupt::typelevel::DMA2_STREAM3, HeadGuardHandler>
+            + interrupt::typelevel::Binding<interrupt::typelevel::TIM7, HeadSlotTickHandler>,
     ) {
         let ring = self.ring as usize;
         // A new run: the miss count goes on (statistics); no miss of an earlier
@@ -320,6 +432,8 @@ impl<'a> SerialTx<'a> {
         // HTIE may be set on the running stream (DMA_SxCR, RM0433 §15.5.5: only the
         // configuration bits are locked while EN = 1); embassy's handler clears HTIF.
         pac::DMA2.st(HEAD_STREAM).cr().modify(|w| w.set_htie(true));
+        start_slot_tick();
+        self.tick = Some(tick);
     }
 
     /// Runs `f(ring, NDTR)` (it writes slots from that position, e.g.
@@ -385,6 +499,9 @@ impl<'a> SerialTx<'a> {
 
 impl Drop for SerialTx<'_> {
     fn drop(&mut self) {
+        if self.tick.is_some() {
+            stop_slot_tick();
+        }
         let ring = self.ring as usize;
         HEAD_GUARD.lock(|g| {
             let mut g = g.borrow_mut();

@@ -90,7 +90,7 @@ pub async fn bridge_hans_out(
     let ring = dma_ring!(".sram2", u8, RING_BYTES);
     let mut channel = None;
     let mut out = SerialTx::new(r.sai, r.sd, r.dma, Irqs, &mut channel, ring);
-    out.arm_head_guard(Irqs);
+    out.arm_head_guard(r.tick, Irqs);
     let mut misses = out.head_misses();
     head_enable.set_high();
     defmt::info!("bridge: {} -> HANS-100, 100000 Hz frames", controller);

@@ -32,7 +32,7 @@ use core::sync::atomic::Ordering;
 use crate::channels::{
     set_laser_gate, Health, BRIDGE_BEAT, HEAD_FAULT, HEALTH, LASER_GATE, LINK_RUNNING, STATS,
 };
-use crate::drivers::serial_tx::HeadGuardHandler;
+use crate::drivers::serial_tx::{HeadGuardHandler, HeadSlotTickHandler};
 use crate::drivers::sync_marks::SyncEdgeHandler;
 use crate::drivers::wave_out::RingGuardHandler;
 
@@ -64,6 +64,9 @@ bind_interrupts!(
         EXTI4 => SyncEdgeHandler;
         UART7 => usart::InterruptHandler<peripherals::UART7>;
         USART2 => usart::InterruptHandler<peripherals::USART2>;
+        /// The slot ring guard's slot timer (`serial_tx::HeadSlotTickHandler`: the
+        /// same guard once per HANS-100 slot).
+        TIM7 => HeadSlotTickHandler;
     }
 );
 

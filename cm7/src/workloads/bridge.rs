@@ -5,7 +5,9 @@
 use super::{Window, Workload, FRAMES};
 use crate::tests::prng::Prng;
 use core::hint::black_box;
+use shared::bridge::slot_guard::SlotGuard;
 use shared::bridge::{Bridge, Config, Protocol};
+use shared::hans::frame::{blank_slot, FRAME_BITS, RING_BYTES, RING_SLOTS};
 use shared::model::{Axis, ForwardFrame, LineEvent, Position};
 use shared::xy3::FrameSize;
 
@@ -21,7 +23,42 @@ pub const WORKLOADS: &[Workload] = &[
         frames: FRAMES as u32,
         run: |w| run(w, hans_to_xy2_mapped()),
     },
+    Workload {
+        name: "slot guard: a run per slot, writer stalled (blank + miss)",
+        frames: FRAMES as u32,
+        run: slot_guard_runs,
+    },
 ];
+
+/// The HANS-100 head's slot ring guard as its slot timer runs it in the firmware
+/// (`drivers/serial_tx.rs` "The slot timer"), one run per 10 us slot ("frame"),
+/// 7 bytes into the slot, laps included, with the writer stalled: every run
+/// blanks the slot the DMA just left (16 byte stores on the real ring) and counts
+/// a miss, the costliest run. Not included: the interrupt's entry and exit, the
+/// lock and the NDTR read.
+fn slot_guard_runs(w: &mut Window) -> u32 {
+    let pos = |k: usize| ((k * FRAME_BITS).div_ceil(8) + 7) % RING_BYTES;
+    let mut g = SlotGuard::new();
+    let mut ring = [0xA5u8; RING_BYTES];
+    // Warm-up outside the window: the writer wrote once, then stalled for a lap.
+    g.wrote(2, pos(0));
+    for k in 0..2 * RING_SLOTS {
+        g.run(pos(k));
+    }
+    w.measure(|| {
+        let mut acc = 0u32;
+        for k in 2 * RING_SLOTS..2 * RING_SLOTS + FRAMES {
+            let a = g.run(black_box(pos(k)));
+            for slot in (0..RING_SLOTS).filter(|s| a.blank & (1 << s) != 0) {
+                // In range: `slot` < RING_SLOTS.
+                let _ = blank_slot(&mut ring, slot);
+            }
+            acc = acc.wrapping_add(u32::from(a.blank) + u32::from(a.gate_off));
+        }
+        black_box(&ring);
+        acc.wrapping_add(g.missed())
+    })
+}
 
 fn xy2_to_xy3() -> Config {
     let mut c = Config::default();

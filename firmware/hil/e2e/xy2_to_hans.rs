@@ -30,7 +30,7 @@ mod tests {
     use xy_bridge::config::{self, Roles};
     use xy_bridge::dma_ring;
     use xy_bridge::drivers::oversample_clock;
-    use xy_bridge::drivers::serial_tx::SerialTx;
+    use xy_bridge::drivers::serial_tx::{self, SerialTx};
     use xy_bridge::tasks::{self, Irqs};
 
     bind_interrupts!(
@@ -110,8 +110,9 @@ mod tests {
     /// executor (P6, `app::LINE_PRIORITY`, which runs `xy2_in` and
     /// `bridge_hans_out`) and thread mode, below the DMA handlers and the slot ring
     /// guard (P0). Longer than the head's ring (8 slots, 80 us) plus what the loop
-    /// writes ahead (30 us) plus a guard period (40 us): the head output runs dry
-    /// whatever the phase, and the guard sees it at four runs at least. Short
+    /// writes ahead (30 us) plus two stream-trigger guard periods (80 us): the
+    /// head output runs dry whatever the phase, and the guard sees it at four of
+    /// the stream's runs and twenty of the slot timer's at least. Short
     /// enough that nothing else runs dry: the XY2-100 input ring (two 250 us
     /// halves) holds less than a half unread when it starts, so 200 us more never
     /// lap it (no input overrun); the source's ring holds a whole 500 us half
@@ -125,10 +126,17 @@ mod tests {
     /// The stall's look: the first one starting 40 ms after the input (the gate is
     /// on within 10 ms).
     const STALL_AFTER_INPUT: Duration = Duration::from_millis(40);
-    /// Guard runs (the stream's half-transfer and transfer-complete interrupts)
-    /// come every 62 or 63 bytes of 12.5 MHz bits: 39.68 or 40.32 us (in ns).
+    /// Guard runs from the stream's trigger (its half-transfer and
+    /// transfer-complete interrupts) come every 62 or 63 bytes of 12.5 MHz bits:
+    /// 39.68 or 40.32 us (in ns).
     const RUN_MIN_NS: u64 = 62 * 8 * 80;
     const RUN_MAX_NS: u64 = 63 * 8 * 80;
+    /// Guard runs from the slot timer (TIM7, `serial_tx::SLOT_TICK_NS`) come
+    /// every 8 us; a run may start up to [`TICK_LATE_US`] late (a critical
+    /// section or another P0 handler first), so a window of `w` us holds at
+    /// least `w / 8 - 1` and at most `w / 8 + 1` of them.
+    const TICK_NS: u64 = serial_tx::SLOT_TICK_NS;
+    const TICK_LATE_US: u64 = 2;
     /// The loop writes each frame two slots ahead of the one the DMA fetches
     /// (`hans::tx::LEAD_SLOTS`), so at the stall's start the DMA enters a slot
     /// not written for this lap within three slots (30 us) of the loop's last
@@ -140,19 +148,27 @@ mod tests {
     /// (tens of microseconds at 400-480 MHz; a bench run should log the
     /// probe's figures and tighten this).
     const CATCH_UP_US: u64 = 100;
-    /// Gate off during the stall: the first guard run after the DMA entered the
-    /// unwritten slot, at most [`LEAD_US`] + a run period in, plus the guard's
-    /// latency and the probe's resolution (1 us each).
-    const GATE_OFF_MAX_US: u64 = LEAD_US + RUN_MAX_NS.div_ceil(1000) + 2;
-    /// Misses the guard counts during the stall: every run from the DMA's entry
-    /// into the first unwritten slot (at most [`LEAD_US`] in; at least 10 us in
-    /// less up to 10 us of the loop's wake-up jitter, so from the start at worst)
-    /// to the stall's end.
-    const MISSES_MIN: u32 = ((STALL_US - LEAD_US) * 1000 / RUN_MAX_NS) as u32;
-    const MISSES_MAX: u32 = (STALL_US * 1000 / RUN_MIN_NS) as u32 + 1;
+    /// Gate off during the stall: the DMA enters the unwritten slot at most
+    /// [`LEAD_US`] in; the slot timer's next run comes within a tick (8 us) plus
+    /// [`TICK_LATE_US`] of that, i.e. within one slot (10 us: the guard's bound,
+    /// `serial_tx` "The slot timer"); plus the probe's resolution (1 us). It was
+    /// `LEAD_US` + a stream run period (41 us) + 2 = 73 us with the stream's
+    /// runs alone.
+    const GATE_OFF_MAX_US: u64 = LEAD_US + TICK_NS / 1000 + TICK_LATE_US + 1;
+    /// Misses the guard counts during the stall: every run, of either trigger,
+    /// from the DMA's entry into the first unwritten slot (at most [`LEAD_US`]
+    /// in; at least 10 us in less up to 10 us of the loop's wake-up jitter, so
+    /// from the start at worst) to the stall's end. Least: the slot timer's
+    /// runs in the last `STALL_US - LEAD_US` (170 us: 21 - 1) and the stream's
+    /// (4); most: both over the whole stall, one more each (25 + 1, 5 + 1).
+    const MISSES_MIN: u32 = ((STALL_US - LEAD_US) * 1000 / TICK_NS) as u32 - 1
+        + ((STALL_US - LEAD_US) * 1000 / RUN_MAX_NS) as u32;
+    const MISSES_MAX: u32 =
+        (STALL_US * 1000 / TICK_NS) as u32 + 1 + (STALL_US * 1000 / RUN_MIN_NS) as u32 + 1;
     /// Misses after the stall, before the loop's first write publishes a slot
-    /// ahead of the DMA: the runs within [`CATCH_UP_US`].
-    const MISSES_AFTER_MAX: u32 = (CATCH_UP_US * 1000).div_ceil(RUN_MIN_NS) as u32;
+    /// ahead of the DMA: the runs of both triggers within [`CATCH_UP_US`].
+    const MISSES_AFTER_MAX: u32 = (CATCH_UP_US * 1000).div_ceil(TICK_NS) as u32
+        + (CATCH_UP_US * 1000).div_ceil(RUN_MIN_NS) as u32;
     /// The gate on again after the stall's end: the loop's first write (within
     /// [`CATCH_UP_US`]), whose look restarts the gate rule, then three wakes
     /// (10 us apart, `GATE_ON_HISTORY`) with the gate on, and 10 us of jitter.
@@ -354,7 +370,8 @@ mod tests {
         // The design's bounds, as the constants' comments derive them.
         const {
             assert!(STALL_US * 1000 > 8 * 10_000 + LEAD_US * 1000 + 2 * RUN_MAX_NS);
-            assert!(MISSES_MIN >= 4 && MISSES_MIN <= MISSES_MAX);
+            assert!(MISSES_MIN >= 24 && MISSES_MIN <= MISSES_MAX);
+            assert!(GATE_OFF_MAX_US <= LEAD_US + 10 + 1);
             assert!(ZEROS_MIN_US * 1000 > LONG_ZEROS as u64 * 400);
         }
         assert!(after.pended, "no look 40 ms into the input to stall in");

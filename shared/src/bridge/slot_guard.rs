@@ -15,8 +15,9 @@
 //! - The writer publishes the slots it wrote ([`SlotGuard::wrote`]): `written` is one
 //!   past the newest. It reads the position and writes in one step the guard cannot
 //!   split (the firmware holds a critical section; a slot is ~16 stores).
-//! - At every guard run (the stream's half-transfer and transfer-complete
-//!   interrupts, [`SlotGuard::run`]) every slot the DMA has wholly fetched since the
+//! - At every guard run ([`SlotGuard::run`]: the stream's half-transfer and
+//!   transfer-complete interrupts, and a timer at least once per slot, below
+//!   "Runs at any position") every slot the DMA has wholly fetched since the
 //!   last run is set to zero bits ([`crate::hans::frame::blank_slot`]: no start
 //!   marker, the head decodes no frame) unless the writer already wrote the slot
 //!   that takes its place next lap. A slot is blanked at most 40 us (a half) after
@@ -27,7 +28,7 @@
 //!   past it) while the writer is sending, the run is a **miss**: the laser gate
 //!   goes off and stays refused until the writer has restarted its gate rule.
 //!   Every miss is counted ([`SlotGuard::missed`], wrapping `u32`): one per guard
-//!   run (at most one per 40 us half) that turned the gate off, so the count
+//!   run that turned the gate off (in the firmware up to ~5 per 40 us), so the count
 //!   moves with every gate drop, and the firmware reports it in the statistics.
 //!   The writer lifts the refusal by that count, as the waveform writer does
 //!   ([`super::ring_guard`], "Misses, and lifting the gate refusal"): after a
@@ -50,8 +51,26 @@
 //! - Resume: the first write re-arms the miss check; the DMA plays zeros until the
 //!   writer's first slot (two ahead).
 //!
-//! The guard runs every half (40 us), so a stall shows as up to ~40 us of no frames
-//! with the gate on before it drops (a slot-rate check would need a 10 us timer).
+//! # Runs at any position
+//! A run decides by absolute numbers only: the DMA's slot from its position and
+//! the lap count, `written`, `blanked`. Nothing in it assumes the position is a
+//! half boundary, so any number of triggers may run it at any positions, in any
+//! order, provided the runs are serialised (one lock) and come more often than
+//! once a lap (so a lower position means exactly one lap on, as above):
+//! - A run between boundaries blanks the slots wholly fetched since the last run
+//!   (a slot whose last bits share a byte with the one being fetched counts only
+//!   once that byte is fetched, so the DMA never re-reads what was blanked this
+//!   lap); a second run at the same position changes nothing.
+//! - The miss check compares the slot being fetched with `written`, wherever the
+//!   DMA is in it. So with a run at least once per slot (10 us, the firmware's
+//!   slot timer: `drivers/serial_tx.rs` "The slot timer"), the first run after
+//!   the DMA starts fetching a slot nobody wrote comes within a slot of it and
+//!   sees that slot (or a later one) unwritten: the gate is off at most one slot
+//!   after the first stale slot starts (the guard's latency included in that
+//!   slot). With the half-boundary runs alone it was up to a half (40 us).
+//!
+//! Host-tested at every byte and with timers of any rate from one run per slot up,
+//! any phase and lateness (the byte model of `tests.rs`).
 
 use crate::hans::frame::{FRAME_BITS, RING_BYTES, RING_SLOTS};
 
@@ -114,19 +133,34 @@ impl SlotGuard {
     /// `RING_BYTES - NDTR`) read now: a position below the last run's is a lap on
     /// (the transfer-complete run is pending).
     pub fn fetched(&self, pos: usize) -> u64 {
+        let (laps, pos) = self.lap_of(pos);
+        laps * RING_BYTES as u64 + pos as u64
+    }
+
+    /// The DMA's lap and ring byte for `pos` read now ([`SlotGuard::fetched`]).
+    fn lap_of(&self, pos: usize) -> (u64, usize) {
         let pos = pos.min(RING_BYTES - 1);
         let laps = if pos < self.pos {
             self.laps + 1
         } else {
             self.laps
         };
-        laps * RING_BYTES as u64 + pos as u64
+        (laps, pos)
     }
 
     /// The absolute number of the slot the DMA is fetching at `pos` (its first slot
     /// not wholly fetched).
     pub fn dma_slot(&self, pos: usize) -> u64 {
-        self.fetched(pos) * 8 / FRAME_BITS as u64
+        let (laps, pos) = self.lap_of(pos);
+        Self::slot_at(laps, pos)
+    }
+
+    /// The absolute slot at lap `laps`, ring byte `pos`: a lap is exactly
+    /// [`RING_SLOTS`] slots (1000 bits, 125 bytes), so no 64-bit division (a
+    /// library call on the Cortex-M7, in a run every 8 us).
+    fn slot_at(laps: u64, pos: usize) -> u64 {
+        const { assert!(RING_BYTES * 8 == RING_SLOTS * FRAME_BITS) };
+        laps * RING_SLOTS as u64 + (pos * 8 / FRAME_BITS) as u64
     }
 
     /// Misses so far (wrapping; guard runs that turned the gate off): a writer that
@@ -164,10 +198,10 @@ impl SlotGuard {
     /// A guard run with the DMA at ring byte `pos` (module docs). The caller carries
     /// out the actions before anything else may write the ring.
     pub fn run(&mut self, pos: usize) -> Actions {
-        let fetched = self.fetched(pos);
-        self.laps = fetched / RING_BYTES as u64;
-        self.pos = (fetched % RING_BYTES as u64) as usize;
-        let current = fetched * 8 / FRAME_BITS as u64;
+        let (laps, pos) = self.lap_of(pos);
+        self.laps = laps;
+        self.pos = pos;
+        let current = Self::slot_at(laps, pos);
         let mut act = Actions::default();
         // A run late by more than a lap (a stall of the interrupts above the tasks)
         // still blanks every ring slot once.

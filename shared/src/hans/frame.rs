@@ -472,12 +472,22 @@ pub fn blank_slot(buf: &mut [u8; RING_BYTES], slot: usize) -> Result<(), DecodeE
     let start = slot_offset(slot)?;
     let end = start + FRAME_BITS;
     let (first, last) = (start / 8, (end - 1) / 8);
-    for (i, byte) in buf.iter_mut().enumerate().take(last + 1).skip(first) {
-        // The bits of this byte inside the slot (MSB first: stream bit 8i is bit 7).
-        let lo = start.max(i * 8) - i * 8;
-        let hi = end.min(i * 8 + 8) - i * 8;
-        let mask = ((0xFFu16 >> lo) & (0xFF00u16 >> hi)) as u8;
-        *byte &= !mask;
+    // The slot's bits in its first and last bytes (MSB first: stream bit 8i is
+    // bit 7 of byte i); the bytes between are wholly its own. Whole bytes and two
+    // masks, not a mask per byte: the guard blanks a slot every 10 us at P0.
+    let head = 0xFFu8 >> (start % 8);
+    let tail = 0xFFu8 << (7 - (end - 1) % 8);
+    match buf.get_mut(first..=last) {
+        Some([a, middle @ .., b]) => {
+            *a &= !head;
+            middle.fill(0);
+            *b &= !tail;
+            Ok(())
+        }
+        // Unreachable: `slot_offset` checked the slot, and a slot spans 16 bytes.
+        _ => Err(DecodeError::OutOfBuffer {
+            bit_offset: start,
+            buf_bytes: RING_BYTES,
+        }),
     }
-    Ok(())
 }

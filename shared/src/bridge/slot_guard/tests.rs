@@ -25,6 +25,11 @@ struct Model {
     blanks_played: Vec<u64>,
     /// Absolute slots the writer wrote.
     wrote: std::collections::BTreeSet<u64>,
+    /// The bytes at which the writer wrote, and those at which the DMA started
+    /// fetching a slot not written for this lap while the writer was sending
+    /// (the first byte with that slot as `dma_slot`, before that byte's runs).
+    write_at: Vec<u64>,
+    stale_at: Vec<u64>,
     /// The firmware's stale flag (`channels`): set at every gate drop, cleared by
     /// the writer's rule ([`Model::look`]).
     stale: bool,
@@ -42,6 +47,8 @@ impl Model {
             gate_offs: Vec::new(),
             blanks_played: Vec::new(),
             wrote: Default::default(),
+            write_at: Vec::new(),
+            stale_at: Vec::new(),
             stale: false,
             seen: 0,
             restarts: 0,
@@ -99,8 +106,47 @@ impl Model {
             slot = (slot + 1) % RING_SLOTS;
         }
         self.last = Some(target);
+        self.write_at.push(fetched);
         assert_eq!(self.guard.wrote(target, pos), d + 2);
         self.look();
+    }
+
+    /// Byte `fetched` comes (before its runs): the DMA starting on a slot not
+    /// written for this lap while the writer sends is noted (`stale_at`).
+    fn enter(&mut self, fetched: u64) {
+        let s = fetched * 8 / FRAME_BITS as u64;
+        let entered = fetched > 0 && (fetched - 1) * 8 / FRAME_BITS as u64 != s;
+        if entered && !self.guard.stopped && self.guard.written <= s {
+            self.stale_at.push(fetched);
+        }
+    }
+
+    /// The bound with a run at least once per slot (module docs, "Runs at any
+    /// position"): every time the DMA started on an unwritten slot, the gate
+    /// dropped within a slot (15.625 bytes) of it, unless the writer wrote again
+    /// within that slot first. Returns how many entries dropped the gate.
+    fn assert_slot_bound(&self, case: &str) -> usize {
+        let within = |x: u64, at: u64| x >= at && x as f64 <= at as f64 + SLOT_BYTES;
+        let mut dropped = 0;
+        for &at in &self.stale_at {
+            if self.gate_offs.iter().any(|&o| within(o, at)) {
+                dropped += 1;
+            } else {
+                assert!(
+                    self.write_at.iter().any(|&w| within(w, at)),
+                    "{case}: DMA on an unwritten slot at byte {at}, gate offs {:?}",
+                    self.gate_offs
+                );
+            }
+        }
+        // And no drop without an unwritten slot (at or before it, in that slot).
+        for &o in &self.gate_offs {
+            assert!(
+                self.stale_at.iter().any(|&at| at <= o),
+                "{case}: gate off at {o} with no unwritten slot before"
+            );
+        }
+        dropped
     }
 
     /// The DMA fetches absolute byte `fetched`: every slot with bits in it must
@@ -134,6 +180,20 @@ fn simulate(
     stalls: &[(u64, u64)],
     latency: u64,
 ) -> Model {
+    simulate_ticked(bytes, wake, jitter, stalls, latency, |_| false)
+}
+
+/// [`simulate`] with a second trigger of the same guard (the firmware's slot
+/// timer): one more run at every byte `f` with `tick(f)`, anywhere between the
+/// half boundaries (before the boundary's run when both fall on one byte).
+fn simulate_ticked(
+    bytes: u64,
+    wake: f64,
+    jitter: impl Fn(u64) -> f64,
+    stalls: &[(u64, u64)],
+    latency: u64,
+    mut tick: impl FnMut(u64) -> bool,
+) -> Model {
     let mut m = Model::new();
     let mut next_wake = jitter(0);
     let mut wakes = 0u64;
@@ -143,6 +203,10 @@ fn simulate(
         let pos = (f % RING_BYTES as u64) as usize;
         if f > 0 && (pos == 0 || pos == HALF) {
             pending_guard = Some(f + latency);
+        }
+        m.enter(f);
+        if f > 0 && tick(f) {
+            m.run_guard(f);
         }
         if pending_guard == Some(f) {
             m.run_guard(f);
@@ -399,6 +463,125 @@ fn restart_keeps_the_miss_count() {
     assert_eq!(g.fetched(HALF), fresh.fetched(HALF));
 }
 
+/// A timer's runs (the firmware's slot timer, `drivers/serial_tx.rs`): every
+/// `period` bytes from `phase`, each one late by up to `late` bytes (`late_of`,
+/// 0..1, picks how much for the k-th), not locked to the ring's bit clock.
+fn timer(
+    period: f64,
+    phase: f64,
+    late: f64,
+    late_of: impl Fn(u64) -> f64,
+) -> impl FnMut(u64) -> bool {
+    let mut k = 0u64;
+    move |f| {
+        let due = phase + k as f64 * period + late * late_of(k);
+        if f as f64 >= due {
+            // One run for every tick due (a run that comes late covers the ticks
+            // it was late for: a timer's pending flag is one bit).
+            while phase + k as f64 * period + late * late_of(k) <= f as f64 {
+                k += 1;
+            }
+            true
+        } else {
+            false
+        }
+    }
+}
+
+/// A small deterministic spread in 0..1 for the k-th tick's lateness.
+fn spread(seed: u64) -> impl Fn(u64) -> f64 {
+    move |k| ((k.wrapping_mul(0x9E37_79B9_7F4A_7C15) ^ seed) >> 40) as f64 / (1u64 << 24) as f64
+}
+
+#[test]
+fn runs_at_any_position_keep_an_on_time_writer() {
+    // A run at every byte (the densest trigger there is), and timers of several
+    // periods and phases: an on-time or jittery writer is never a miss, and the
+    // model's every-byte check (old frames) holds.
+    let jitters: [&dyn Fn(u64) -> f64; 3] = [&|_| 0.0, &|k| (k * 7 % 10) as f64 * 1.4, &|k| {
+        (k % 2) as f64 * 20.0
+    }];
+    for (j, jitter) in jitters.iter().enumerate() {
+        let m = simulate_ticked(20_000, SLOT_BYTES, jitter, &[], 1, |_| true);
+        assert!(m.gate_offs.is_empty(), "jitter {j}: {:?}", m.gate_offs);
+        assert!(m.blanks_played.iter().all(|s| !m.wrote.contains(s)));
+        for period in [12.5, 15.625, 9.3, 15.0] {
+            for phase in [0.0, 4.1, 11.7] {
+                let t = timer(period, phase, 0.6, spread(j as u64));
+                let m = simulate_ticked(20_000, SLOT_BYTES, jitter, &[], 1, t);
+                assert!(
+                    m.gate_offs.is_empty(),
+                    "jitter {j} period {period} phase {phase}: {:?}",
+                    m.gate_offs
+                );
+                assert_eq!(m.guard.missed(), 0);
+                assert!(m.blanks_played.iter().all(|s| !m.wrote.contains(s)));
+            }
+        }
+    }
+}
+
+/// The new bound: with a run at least once per slot (any phase, any rate of at
+/// least one per 15.625 bytes, lateness included), the gate drops no later than
+/// one slot after the DMA starts fetching the first slot nobody wrote, and never
+/// before (module docs, "Runs at any position").
+#[test]
+fn a_run_per_slot_drops_the_gate_within_a_slot() {
+    // (period, lateness) in bytes: the firmware's 8 us timer (12.5 bytes) late by
+    // up to 3 bytes (under 2 us), a timer at the slot rate itself, a fast one.
+    for (period, late) in [(12.5, 3.1), (15.625, 0.0), (15.0, 0.6), (6.2, 9.0)] {
+        assert!(period + late <= SLOT_BYTES);
+        for start in (2_000..2_125).step_by(9) {
+            for len in [20, 31, 50, 63, 100, 200, 1_300] {
+                for phase in [0.0, 5.5, 10.9] {
+                    let t = timer(period, phase, late, spread(start ^ len));
+                    let m =
+                        simulate_ticked(5_000, SLOT_BYTES, |_| 0.0, &[(start, start + len)], 1, t);
+                    let case = format!("{period}+{late} {start}+{len} phase {phase}");
+                    let dropped = m.assert_slot_bound(&case);
+                    // The first gate drop: not before the DMA reached the first
+                    // unwritten slot, within a slot of it.
+                    if let Some(&o) = m.gate_offs.first() {
+                        let at = m.stale_at[0];
+                        assert!(
+                            o >= at && o as f64 <= at as f64 + SLOT_BYTES,
+                            "{case}: first unwritten slot at {at}, gate off at {o}"
+                        );
+                    }
+                    // Not vacuous: a stall of three slots runs dry, and one that
+                    // goes on a slot beyond that drops the gate.
+                    if len >= 63 {
+                        assert!(!m.stale_at.is_empty(), "{case}");
+                    }
+                    if len >= 63 + 16 {
+                        assert!(dropped > 0, "{case}: no gate off");
+                    }
+                    assert_eq!(m.guard.missed() as usize, m.gate_offs.len(), "{case}");
+                    assert!(!m.stale, "{case}: the gate refused for good");
+                    assert_eq!(m.seen, m.guard.missed(), "{case}");
+                }
+            }
+        }
+    }
+}
+
+/// Why it needs a run per slot: the half-boundary runs alone can leave up to a
+/// half (62.5 bytes) between the first unwritten slot and the gate drop, which
+/// the bound above excludes (the test above is not vacuous).
+#[test]
+fn half_runs_alone_can_be_a_half_late() {
+    let worst = (2_000..2_125u64)
+        .filter_map(|start| {
+            let m = simulate(5_000, SLOT_BYTES, |_| 0.0, &[(start, start + 200)], 1);
+            Some(m.gate_offs.first()? - m.stale_at.first()?)
+        })
+        .max();
+    assert!(
+        worst.is_some_and(|w| w as f64 > 2.0 * SLOT_BYTES),
+        "{worst:?}"
+    );
+}
+
 #[test]
 fn blank_slot_clears_only_its_bits() {
     let frames: Vec<Frame> = (0..8u32)
@@ -526,5 +709,28 @@ proptest! {
         prop_assert_eq!(m.guard.missed() as usize, m.gate_offs.len());
         prop_assert!(m.restarts as usize <= stalls.len());
         prop_assert!(!m.stale, "the gate refused for good");
+    }
+
+    /// The same with a second trigger at any rate and phase (the slot timer,
+    /// runs anywhere between the boundaries): never an old frame, and a gate
+    /// drop within a slot of the DMA's entry into each first unwritten slot.
+    #[test]
+    fn never_an_old_frame_with_a_timer(
+        stalls in proptest::collection::vec((100u64..9_000, 1u64..2_000), 0..4),
+        jit in 0.0f64..9.0,
+        latency in 0u64..6,
+        period in 1.0f64..15.625,
+        phase in 0.0f64..16.0,
+        late_frac in 0.0f64..1.0,
+        seed in any::<u64>(),
+    ) {
+        let late = (SLOT_BYTES - period) * late_frac;
+        let stalls: Vec<(u64, u64)> = stalls.iter().map(|&(a, l)| (a, a + l)).collect();
+        let t = timer(period, phase, late, spread(seed));
+        let m = simulate_ticked(12_000, SLOT_BYTES, |k| (k % 5) as f64 * jit / 4.0, &stalls, latency, t);
+        prop_assert_eq!(m.guard.missed() as usize, m.gate_offs.len());
+        prop_assert!(m.restarts as usize <= stalls.len());
+        prop_assert!(!m.stale, "the gate refused for good");
+        m.assert_slot_bound("proptest");
     }
 }
