@@ -937,22 +937,11 @@ impl HansRx {
     #[inline(never)]
     fn looked_again(&mut self, pattern: u128) -> bool {
         let ratio = self.timing.ratio;
-        let Some(Second {
-            ring,
-            head,
-            next,
-            w,
-            ..
-        }) = second(&self.rings, &self.channels, &self.timing, self.reference)
+        let Some(Second { ring, head, .. }) =
+            second_started(&self.rings, &self.channels, &self.timing, self.reference)
         else {
             return false;
         };
-        if ![head, next]
-            .into_iter()
-            .all(|at| start_edge(ring, at, w).is_some())
-        {
-            return false;
-        }
         let Some(t) = confirm::tail_again(ring, head, ratio, pattern) else {
             return false;
         };
@@ -1005,22 +994,11 @@ impl HansRx {
             return false;
         }
         let ratio = self.timing.ratio;
-        let Some(Second {
-            ring,
-            head,
-            next,
-            w,
-            ..
-        }) = second(&self.rings, &self.channels, &self.timing, self.reference)
+        let Some(Second { ring, head, .. }) =
+            second_started(&self.rings, &self.channels, &self.timing, self.reference)
         else {
             return false;
         };
-        if ![head, next]
-            .into_iter()
-            .all(|at| start_edge(ring, at, w).is_some())
-        {
-            return false;
-        }
         // Only a tail that the excursion check alone rejected.
         let Some(t) = confirm::tail(ring, head, ratio, pattern) else {
             return false;
@@ -1611,6 +1589,22 @@ fn second<'a>(
         next: head.wrapping_add((ratio as u32).wrapping_mul(FRAME_BITS as u32)),
         w: confirm_window(ratio),
     })
+}
+
+/// [`second`], when both start edges (the frame's and its successor's) lie
+/// in their windows: where the cold second looks ([`HansRx::looked_again`],
+/// [`HansRx::recounted`]) start, as [`HansRx::confirmed`] requires of a frame.
+fn second_started<'a>(
+    rings: &'a [Ring; CHANNELS],
+    channels: &[Channel; CHANNELS],
+    timing: &Timing,
+    n: usize,
+) -> Option<Second<'a>> {
+    let s = second(rings, channels, timing, n)?;
+    [s.head, s.next]
+        .into_iter()
+        .all(|at| start_edge(s.ring, at, s.w).is_some())
+        .then_some(s)
 }
 
 /// What [`second`] finds.
