@@ -379,18 +379,13 @@ impl<'a> SerialTx<'a> {
         (byte * 8 / shared::hans::frame::FRAME_BITS) % RING_SLOTS
     }
 
-    /// The slot to fill next: two ahead of the one being fetched (module docs).
-    pub fn next_free_slot(&self) -> usize {
-        (self.sending_slot() + 2) % RING_SLOTS
-    }
-
-    /// Runs `f` on the ring to update slots in place (use
-    /// `shared::hans::frame::write_slot` with [`Self::next_free_slot`]).
+    /// Runs `f` on the ring to update slots in place (e.g.
+    /// `shared::hans::tx::Transmitter::update` from [`Self::remaining`]).
     pub fn update<R>(&mut self, f: impl FnOnce(&mut [u8; RING_BYTES]) -> R) -> R {
         // SAFETY: the pointer comes from the `&'a mut` given to `new` and stays valid
         // for 'a; `&mut self` makes this the only CPU reference. The DMA reads the
         // buffer concurrently, which is the point of the design: callers only touch
-        // a slot the DMA is not fetching (module docs, `next_free_slot`).
+        // a slot the DMA is not fetching (module docs).
         f(unsafe { &mut *self.ring })
     }
 
